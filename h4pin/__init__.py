@@ -1,0 +1,31 @@
+# SPDX-License-Identifier: Apache-2.0
+"""h4pin: the H4 parallel robot on Pinocchio, and its stiffness after Company et al. (ICRA 2005)."""
+
+from h4pin.errors import (
+    ConvergenceError,
+    H4Error,
+    MalformedURDFError,
+    ParameterError,
+    PoseError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
+from h4pin.params import VARIANTS, H4Params, symmetric_params
+from h4pin.robot import H4, load
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "H4",
+    "VARIANTS",
+    "ConvergenceError",
+    "H4Error",
+    "H4Params",
+    "MalformedURDFError",
+    "ParameterError",
+    "PoseError",
+    "SingularPoseError",
+    "UnreachablePoseError",
+    "load",
+    "symmetric_params",
+]

@@ -1,0 +1,44 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Typed errors of h4pin: every failure a user can act on has its own class.
+
+All derive from :class:`H4Error`, so ``except h4pin.H4Error`` catches any of them.
+Errors about a value the caller passed also derive from :class:`ValueError`.
+"""
+
+from __future__ import annotations
+
+
+class H4Error(Exception):
+    """Base class of every error raised by h4pin."""
+
+
+class ParameterError(H4Error, ValueError):
+    """A parameter of :class:`h4pin.H4Params` (or of a function) is invalid; the message names it."""
+
+
+class MalformedURDFError(H4Error, ValueError):
+    """A URDF cannot describe an H4: a closure, frame or spring datum is missing or inconsistent."""
+
+
+class PoseError(H4Error, ValueError):
+    """Base class of the errors about one pose (or one index of a batch of poses).
+
+    Attributes:
+        index: Index of the first bad pose in a batch, or ``None`` for a single pose.
+    """
+
+    def __init__(self, message: str, index: int | None = None):
+        super().__init__(message if index is None else f"pose #{index}: {message}")
+        self.index = index
+
+
+class UnreachablePoseError(PoseError):
+    """A leg cannot reach its plate point: the closure has no real solution."""
+
+
+class SingularPoseError(PoseError):
+    """The pose is (numerically) singular: a matrix the model inverts has lost rank."""
+
+
+class ConvergenceError(H4Error, RuntimeError):
+    """An iterative solve (forward geometry, loaded equilibrium) did not converge."""

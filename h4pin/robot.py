@@ -1,0 +1,297 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The H4 as a Pinocchio model with loop closures: :func:`load` and :class:`H4`.
+
+``load("prototype")`` returns an :class:`H4` holding a plain ``pin.Model`` (a tree: base, four
+legs with universal joints, and the plate as a floating subtree), its geometry models, and the
+eight Pinocchio 3-D point constraints (``pin.RigidConstraintModel``, ``CONTACT_3D``) that close
+the bars on the plate. Everything else in h4pin is computed from these.
+
+Velocity split: the 4 actuated joints ``v_a`` and the 24 passive ones ``v_p`` (16 bar
+revolutes, 6 plate free-flyer, 2 lateral revolutes). The 24 closure equations
+``Jc_a v_a + Jc_p v_p = 0`` have a square 24x24 passive block away from singularities, so the
+passive velocities follow from the actuated ones: ``v_p = -Jc_p^-1 Jc_a v_a``.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin import geometry
+from h4pin.errors import MalformedURDFError, SingularPoseError
+from h4pin.params import LEG_LATERAL, VARIANTS, H4Params
+from h4pin.urdf import bar_names, closures_from_urdf, lateral_names, leg_names, params_from_urdf, to_urdf
+
+#: Condition number of the passive closure Jacobian above which a pose is called singular.
+SINGULAR_COND = 1e10
+
+
+def urdf_dir() -> Path:
+    """Folder of the shipped URDF files (inside the installed package, or the repo's ``urdf/``)."""
+    packaged = Path(str(resources.files("h4pin"))) / "urdf"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parent.parent / "urdf"
+
+
+def variant_path(name: str) -> Path:
+    """Path of the shipped URDF of variant ``name`` (``urdf/h4_<name>.urdf``)."""
+    return urdf_dir() / f"h4_{name}.urdf"
+
+
+def load(source: str | Path | H4Params = "prototype") -> H4:
+    """Load an H4: a variant name, a path to a URDF file, or an :class:`H4Params`.
+
+    Args:
+        source: ``"prototype"`` (default) or ``"symmetric"`` (see :data:`h4pin.VARIANTS`), a path
+            to a URDF written by :func:`h4pin.urdf.to_urdf`, or parameters (the URDF is then
+            generated in memory).
+
+    Raises:
+        ValueError: unknown variant name (the message lists the available ones).
+        FileNotFoundError: the path does not exist.
+        MalformedURDFError: the URDF does not describe an H4 completely.
+    """
+    if isinstance(source, H4Params):
+        return H4(source, to_urdf(source), "<H4Params>")
+    text_source = str(source)
+    looks_like_path = isinstance(source, Path) or text_source.endswith(".urdf") or "/" in text_source
+    if not looks_like_path:
+        if text_source not in VARIANTS:
+            raise ValueError(f"unknown H4 variant {text_source!r}; available: {', '.join(sorted(VARIANTS))} "
+                             "(or pass a path to a URDF, or an H4Params)")
+        path = variant_path(text_source)
+    else:
+        path = Path(source)
+    if not path.is_file():
+        raise FileNotFoundError(f"no URDF file at {path}")
+    text = path.read_text()
+    return H4(params_from_urdf(text, str(path)), text, str(path))
+
+
+class H4:
+    """An H4 robot: Pinocchio model, geometry models, closures and parameters.
+
+    Attributes:
+        params: The :class:`H4Params` the URDF encodes.
+        model, data: Pinocchio model (nq = 29, nv = 28) and its data.
+        visual_model, collision_model: Pinocchio geometry models (primitives).
+        constraint_models, constraint_datas: the 8 ``CONTACT_3D`` closures, bar ij at B_ij,
+            in the order 11, 12, 21, ..., 42 (index n = 2(i-1) + (j-1)).
+        frames: Frame ids by name: P_i, A_i, A_ij, B_i, B_ij, C_k, D, bar_ij_end.
+        v_act, v_pas: Velocity indices of the 4 actuators and of the 24 passive joints.
+        urdf: The URDF text; source: where it came from.
+    """
+
+    def __init__(self, params: H4Params, urdf_text: str, source: str = "URDF"):
+        self.params = params
+        self.urdf = urdf_text
+        self.source = source
+        try:
+            self.model = pin.buildModelFromXML(urdf_text)
+            self.visual_model = pin.buildGeomFromUrdfString(self.model, urdf_text, pin.GeometryType.VISUAL)
+            self.collision_model = pin.buildGeomFromUrdfString(self.model, urdf_text, pin.GeometryType.COLLISION)
+        except (RuntimeError, ValueError) as exc:
+            raise MalformedURDFError(f"{source}: Pinocchio cannot load it ({exc})") from None
+        self.data = self.model.createData()
+        self.frames = {f.name: i for i, f in enumerate(self.model.frames)}
+        self._jid = {name: i for i, name in enumerate(self.model.names)}
+
+        def jidx(name: str) -> pin.JointModel:
+            return self.model.joints[self._jid[name]]
+
+        self.v_act = np.array([jidx(leg_names(i + 1)["joint"]).idx_v for i in range(4)])
+        self.v_pas = np.setdiff1d(np.arange(self.model.nv), self.v_act)
+        self._q_act = np.array([jidx(leg_names(i + 1)["joint"]).idx_q for i in range(4)])
+        self._q_u = np.array([[jidx(bar_names(i + 1, j + 1)[u]).idx_q for u in ("u1", "u2")]
+                              for i in range(4) for j in range(2)])
+        self._q_plate = jidx("plate").idx_q
+        self._v_plate = np.r_[jidx("plate").idx_v + np.arange(6),
+                              [jidx(lateral_names(k + 1)["joint"]).idx_v for k in range(2)]]
+        self._q_lat = np.array([jidx(lateral_names(k + 1)["joint"]).idx_q for k in range(2)])
+        self._build_constraints()
+        order = [bar_names(i + 1, j + 1) for i in range(4) for j in range(2)]
+        self._fid_A = [self.frames[b["A"]] for b in order]
+        self._fid_B = [self.frames[b["B"]] for b in order]
+        self._fid_D = self.frames["D"]
+
+    def _build_constraints(self) -> None:
+        closures = {c[0]: c for c in closures_from_urdf(self.urdf, self.source)}
+        self.constraint_models = pin.StdVec_RigidConstraintModel()
+        for i in range(4):
+            for j in range(2):
+                name = bar_names(i + 1, j + 1)["closure"]
+                if name not in closures:
+                    raise MalformedURDFError(f"{self.source}: loop closure '{name}' is missing")
+                _, parent, pxyz, child, cxyz = closures[name]
+                sides = []
+                for link, xyz in ((parent, pxyz), (child, cxyz)):
+                    if link not in self.frames:
+                        raise MalformedURDFError(f"{self.source}: closure '{name}' names unknown frame '{link}'")
+                    f = self.model.frames[self.frames[link]]
+                    sides += [f.parentJoint, f.placement * pin.SE3(np.eye(3), xyz)]
+                cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, self.model, *sides, pin.ReferenceFrame.LOCAL)
+                cm.name = name
+                self.constraint_models.append(cm)
+        self.constraint_datas = pin.StdVec_RigidConstraintData()
+        for cm in self.constraint_models:
+            self.constraint_datas.append(cm.createData())
+
+    # ----------------------------------------------------------------- geometry
+    def inverse_geometry(self, pose: np.ndarray, *, on_error: str = "raise") -> np.ndarray:
+        """Actuator angles (rad) of pose [x, y, z, theta] (m, rad); (4,) -> (4,), (N, 4) -> (N, 4).
+
+        Closed form, elbow-out branch (see :func:`h4pin.geometry.inverse_geometry`).
+
+        Raises:
+            UnreachablePoseError: a leg cannot reach its plate point (the message names the leg).
+        """
+        return geometry.inverse_geometry(self.params, pose, on_error=on_error)
+
+    def forward_geometry(self, q: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+        """Pose [x, y, z, theta] (m, rad) of actuator angles q (4,), by Newton.
+
+        Raises:
+            ConvergenceError: the legs do not assemble (or Newton failed from ``guess``).
+        """
+        return geometry.forward_geometry(self.params, q, guess)
+
+    def configuration(self, pose: np.ndarray) -> np.ndarray:
+        """Full Pinocchio configuration (nq,) of a rigid pose, all 8 closures satisfied.
+
+        Actuators from the inverse geometry; each bar's universal joint from the direction of
+        B_ij - A_ij in the forearm frame (closed form); plate free-flyer at D with orientation
+        Rz(theta); lateral joints at omega_k = -theta (the lateral bars only translate).
+        """
+        x = geometry.as_poses(pose)
+        if x.ndim != 1:
+            raise ValueError(f"configuration takes a single pose (4,), got shape {x.shape}")
+        q_act = self.inverse_geometry(x)
+        return self._configuration(x, q_act)
+
+    def _configuration(self, x: np.ndarray, q_act: np.ndarray) -> np.ndarray:
+        p = self.params
+        pts = geometry.points(p, x, q_act)
+        u = np.repeat(p.U.T, 2, axis=0)  # (8, 3), per bar
+        a = np.repeat(p.forearm_dirs.T, 2, axis=0)
+        qb = np.repeat(q_act, 2)
+        w = (pts.Bij - pts.Aij).reshape(8, 3) / p.l
+        # Bar direction in the forearm frame: Rot(u, -q) w (Rodrigues).
+        c, s = np.cos(qb)[:, None], np.sin(qb)[:, None]
+        uw = np.sum(u * w, axis=1, keepdims=True)
+        d = w * c - np.cross(u, w) * s + u * uw * (1 - c)
+        # d = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
+        beta = np.arcsin(np.clip(np.sum(d * u, axis=1), -1.0, 1.0))
+        alpha = np.arctan2(-np.sum(d * a, axis=1), -d[:, 2])
+        q = pin.neutral(self.model)
+        q[self._q_act] = q_act
+        q[self._q_u[:, 0]] = alpha
+        q[self._q_u[:, 1]] = beta
+        q[self._q_plate:self._q_plate + 7] = [*x[:3], 0.0, 0.0, np.sin(x[3] / 2), np.cos(x[3] / 2)]
+        q[self._q_lat] = -x[3]
+        return q
+
+    def closure_residuals(self, q: np.ndarray) -> np.ndarray:
+        """Position errors of the 8 closures at configuration q, (8, 3) in m, from Pinocchio."""
+        pin.forwardKinematics(self.model, self.data, q)
+        out = np.empty((8, 3))
+        for n, (cm, cd) in enumerate(zip(self.constraint_models, self.constraint_datas)):
+            cm.calc(self.model, self.data, cd)
+            out[n] = cd.c1Mc2.translation
+        return out
+
+    # ---------------------------------------------------------------- Jacobians
+    def compute(self, q: np.ndarray) -> None:
+        """Run Pinocchio's kinematics, joint Jacobians, frames and closures at configuration q."""
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        for cm, cd in zip(self.constraint_models, self.constraint_datas):
+            cm.calc(self.model, self.data, cd)
+
+    def passive_map(self) -> np.ndarray:
+        """``S`` (nv, 4) with ``v = S q_dot``: the closed-loop velocity of every joint.
+
+        From the closure Jacobian after :meth:`compute`: ``v_p = -Jc_p^-1 Jc_a q_dot``.
+
+        Raises:
+            SingularPoseError: the 24x24 passive closure block is singular (cond > 1e10).
+        """
+        jc = pin.getConstraintsJacobian(self.model, self.data, self.constraint_models, self.constraint_datas)
+        jp, ja = jc[:, self.v_pas], jc[:, self.v_act]
+        cond = np.linalg.cond(jp)
+        if not cond < SINGULAR_COND:
+            raise SingularPoseError(f"the passive closure Jacobian is singular (cond = {cond:.2e}): "
+                                    "the plate has an uncontrolled motion at this pose")
+        s = np.zeros((self.model.nv, 4))
+        s[self.v_act] = np.eye(4)
+        s[self.v_pas] = -np.linalg.solve(jp, ja)
+        return s
+
+    def jacobian(self, pose: np.ndarray) -> np.ndarray:
+        """J (4, 4) with x_dot = J q_dot (eq. 8), from Pinocchio's closure and frame Jacobians.
+
+        The passive velocities come from the closure Jacobians (:meth:`passive_map`); the plate
+        motion from the frame Jacobian of D (LOCAL_WORLD_ALIGNED), rows v_x, v_y, v_z, w_z.
+        """
+        self.compute(self.configuration(pose))
+        jd = pin.getFrameJacobian(self.model, self.data, self._fid_D, pin.LOCAL_WORLD_ALIGNED)
+        return jd[[0, 1, 2, 5]] @ self.passive_map()
+
+    def jx_jq(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The paper's Jx and Jq of eq. 8 (closed form), ``Jx x_dot = Jq q_dot``."""
+        x = geometry.as_poses(pose)
+        return geometry.jx_jq(self.params, x, self.inverse_geometry(x))
+
+    def plate_jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """After :meth:`compute`: Jacobians of the B_ij (8, 3, 8) and A_ij (8, 3, 4) points.
+
+        ``dB_ij = JB[n] dtp`` with ``dtp = [dD, dOmega, domega_1, domega_2]`` (world-aligned at
+        D, relative lateral rotations), and ``dA_ij = JA[n] dq`` for actuator rotations. Both are
+        Pinocchio frame Jacobians (LOCAL_WORLD_ALIGNED); the plate columns are mapped from the
+        free-flyer's local velocity to dtp with the frame Jacobian of D.
+        """
+        m, d = self.model, self.data
+        jd = pin.getFrameJacobian(m, d, self._fid_D, pin.LOCAL_WORLD_ALIGNED)[:, self._v_plate]
+        to_tp = np.eye(8)
+        to_tp[:6, :6] = jd[:, :6]  # dtp[:6] = J_D,ff v_ff; lateral columns are identity
+        jb = np.stack([pin.getFrameJacobian(m, d, f, pin.LOCAL_WORLD_ALIGNED)[:3, self._v_plate] for f in self._fid_B])
+        ja = np.stack([pin.getFrameJacobian(m, d, f, pin.LOCAL_WORLD_ALIGNED)[:3, self.v_act] for f in self._fid_A])
+        return np.linalg.solve(to_tp.T, jb.transpose(0, 2, 1)).transpose(0, 2, 1), ja
+
+    def frame_position(self, name: str) -> np.ndarray:
+        """World position (3,) of a named frame after :meth:`compute` (or forwardKinematics +
+        updateFramePlacements)."""
+        return self.data.oMf[self.frames[name]].translation.copy()
+
+    # ---------------------------------------------------------------- statics
+    def gravity_torques(self, pose: np.ndarray, gravity: np.ndarray | None = None) -> np.ndarray:
+        """Actuator torques (4,) in N.m that hold the robot still at ``pose`` under gravity.
+
+        From Pinocchio's generalized gravity ``g(q)`` (nv) and the closure Jacobians: with
+        ``v = S q_dot`` (:meth:`passive_map`), virtual work gives ``tau = S^T g(q)``; this is the
+        same as eliminating the closure forces ``lambda`` from ``g = tau_full + Jc^T lambda``.
+        """
+        q = self.configuration(pose)
+        if gravity is not None:
+            saved = self.model.gravity.linear.copy()
+            self.model.gravity.linear = np.asarray(gravity, float)
+        try:
+            g = pin.computeGeneralizedGravity(self.model, self.data, q)
+            self.compute(q)
+            return self.passive_map().T @ g
+        finally:
+            if gravity is not None:
+                self.model.gravity.linear = saved
+
+    def potential_energy(self, pose: np.ndarray) -> float:
+        """Gravitational potential energy (J) of the assembled robot at ``pose``, from Pinocchio."""
+        return float(pin.computePotentialEnergy(self.model, self.data, self.configuration(pose)))
+
+    def __repr__(self) -> str:
+        return f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, closures={len(self.constraint_models)})"
+
+
+__all__ = ["H4", "load", "urdf_dir", "variant_path", "LEG_LATERAL"]
