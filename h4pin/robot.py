@@ -173,25 +173,50 @@ class H4:
         return self._configuration(x, q_act)
 
     def _configuration(self, x: np.ndarray, q_act: np.ndarray) -> np.ndarray:
+        rot = geometry.rot_z(x[3])
+        return self.assemble(q_act, x[:3], rot, np.array([-x[3], -x[3]]))
+
+    def assemble(self, q_act: np.ndarray, d: np.ndarray, rotation: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Configuration (nq,) with given actuator angles and plate placement; bars aimed at B_ij.
+
+        Args:
+            q_act: (4,) actuator angles, rad.
+            d: (3,) position of D, m.
+            rotation: (3, 3) world orientation of the central bar (Rz(theta) at a rigid pose).
+            omega: (2,) joint angles of the lateral bars, rad (-theta at a rigid pose).
+
+        Each bar's universal joint points the bar from A_ij to B_ij (closed form); the closures
+        hold exactly when the plate placement is consistent with q_act (e.g. from
+        :meth:`configuration`), and approximately for a slightly deformed robot (used to draw
+        deflected shapes).
+        """
         p = self.params
-        pts = geometry.points(p, x, q_act)
+        A, Aij = geometry.forearm_points(p, np.asarray(q_act, float))
+        bij = p.plate_ball_centres() - p.DC.T[LEG_LATERAL][:, None, :]  # B_ij - C_k in lateral frame
+        Bij = np.empty((4, 2, 3))
+        for k in range(2):
+            lat = rotation @ geometry.rot_z(omega[k])
+            c_k = d + rotation @ p.DC[:, k]
+            legs = LEG_LATERAL == k
+            Bij[legs] = c_k + bij[legs] @ lat.T
         u = np.repeat(p.U.T, 2, axis=0)  # (8, 3), per bar
         a = np.repeat(p.forearm_dirs.T, 2, axis=0)
         qb = np.repeat(q_act, 2)
-        w = (pts.Bij - pts.Aij).reshape(8, 3) / p.l
+        w = (Bij - Aij).reshape(8, 3)
+        w = w / np.linalg.norm(w, axis=1, keepdims=True)
         # Bar direction in the forearm frame: Rot(u, -q) w (Rodrigues).
         c, s = np.cos(qb)[:, None], np.sin(qb)[:, None]
         uw = np.sum(u * w, axis=1, keepdims=True)
-        d = w * c - np.cross(u, w) * s + u * uw * (1 - c)
-        # d = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
-        beta = np.arcsin(np.clip(np.sum(d * u, axis=1), -1.0, 1.0))
-        alpha = np.arctan2(-np.sum(d * a, axis=1), -d[:, 2])
+        bar = w * c - np.cross(u, w) * s + u * uw * (1 - c)
+        # bar = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
+        beta = np.arcsin(np.clip(np.sum(bar * u, axis=1), -1.0, 1.0))
+        alpha = np.arctan2(-np.sum(bar * a, axis=1), -bar[:, 2])
         q = pin.neutral(self.model)
         q[self._q_act] = q_act
         q[self._q_u[:, 0]] = alpha
         q[self._q_u[:, 1]] = beta
-        q[self._q_plate:self._q_plate + 7] = [*x[:3], 0.0, 0.0, np.sin(x[3] / 2), np.cos(x[3] / 2)]
-        q[self._q_lat] = -x[3]
+        q[self._q_plate:self._q_plate + 7] = pin.SE3ToXYZQUAT(pin.SE3(rotation, np.asarray(d, float)))
+        q[self._q_lat] = omega
         return q
 
     def closure_residuals(self, q: np.ndarray) -> np.ndarray:
