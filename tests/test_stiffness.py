@@ -1,0 +1,191 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The stiffness model of eq. 30 against independent routes, closed forms and symmetries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, load, statics
+from h4pin.stiffness import TERMS, compliance, matrices, matrices_closed_form
+from tests.conftest import sample_poses
+
+
+def rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+def test_result_structure(proto, centre):
+    res = compliance(proto, centre)
+    assert res.matrix.shape == (8, 8) and res.translational.shape == (3, 3)
+    assert tuple(res.terms) == TERMS
+    np.testing.assert_allclose(sum(res.terms.values()), res.matrix, rtol=0, atol=1e-20)
+    np.testing.assert_allclose(res.q, np.pi / 4, atol=1e-12)
+    np.testing.assert_array_equal(res.pose, centre)
+
+
+def test_independent_implementation_numbers(proto, centre):
+    """H4-NOTES: an independent implementation gets these at q_i = 45 deg (um/N)."""
+    res = compliance(proto, centre)
+    np.testing.assert_allclose(res.translational * 1e6, [[33.6, 0, 15.9], [0, 16.6, 0], [15.9, 0, 14.2]], atol=0.05)
+    split = {t: res.terms[t][0, 0] * 1e6 for t in TERMS}
+    np.testing.assert_allclose([split[t] for t in TERMS], [20.0, 11.5, 1.8, 0.26], atol=0.05)
+
+
+def test_control_term_hand_computation(proto, poses):
+    """Eq. 10: the control term on (x, y, z, theta) is J J^T / kc, J = Jx^-1 Jq in closed form."""
+    for x in poses:
+        jx, jq = proto.jx_jq(x)
+        j = np.linalg.solve(jx, jq)
+        for model in ("paper", "consistent"):
+            ctrl = compliance(proto, x, model).terms["control"][np.ix_([0, 1, 2, 5], [0, 1, 2, 5])]
+            assert rel(ctrl, j @ j.T / proto.params.kc) < 1e-12
+
+
+def test_bending_and_torsion_scale_with_the_stressed_fraction(centre):
+    """Bending is the control term times kc phi^3 r / (3 E I); torsion scales with phi."""
+    full, part = load(H4Params()), load(H4Params(forearm_stressed_fraction=2 / 3))
+    a, b = compliance(full, centre), compliance(part, centre)
+    p = full.params
+    assert rel(a.terms["bending"], a.terms["control"] * p.kc * p.r / (3 * p.E * p.I)) < 1e-12
+    assert rel(b.terms["bending"], a.terms["bending"] * (2 / 3) ** 3) < 1e-12
+    assert rel(b.terms["torsion"], a.terms["torsion"] * (2 / 3)) < 1e-12
+    assert rel(b.terms["tension"], a.terms["tension"]) < 1e-12
+
+
+def test_consistent_equals_statics_route(proto, poses):
+    """Newton-Euler equilibrium of the three plate bodies + unit loads, term by term, <= 1e-9."""
+    worst = 0.0
+    for x in poses:
+        ours = compliance(proto, x, "consistent").terms
+        theirs = statics.compliance_terms(proto.params, x)
+        worst = max(worst, *(rel(ours[t], theirs[t]) for t in TERMS))
+    assert worst <= 1e-9, f"consistent K vs statics route: {worst:.1e} relative"
+
+
+def test_jb_inverse_equals_statics_bar_forces(proto, poses):
+    """Eq. 17 f_b = Jb^-1 Gamma_ext with Jb = M1^T diag(1/l) vs the plate equilibrium."""
+    for x in poses[:4]:
+        jb = matrices(proto, x).Jb
+        assert rel(np.linalg.inv(jb), statics.bar_forces(proto.params, x)) < 1e-10
+
+
+def test_translational_block_equals_finite_differences(proto, poses):
+    """Perturb each spring, re-solve the closure, difference the plate pose: <= 1e-6."""
+    worst = 0.0
+    for x in poses[:3]:
+        fd = sum(deformed.compliance_terms(proto.params, x).values())
+        for model in ("paper", "consistent"):
+            worst = max(worst, rel(compliance(proto, x, model).translational, fd[:3, :3]))
+    assert worst <= 1e-6, f"translational block vs finite differences: {worst:.1e} relative"
+
+
+def test_consistent_full_matrix_equals_finite_differences(proto, poses):
+    fd = sum(deformed.compliance_terms(proto.params, poses[0]).values())
+    assert rel(compliance(proto, poses[0], "consistent").matrix, fd) <= 1e-6
+
+
+@pytest.mark.parametrize("direction", [[1, 0, 0], [0, 1, 0], [0, 0, -1], [0.3, -0.4, -0.8]])
+def test_nonlinear_loaded_equilibrium(proto, poses, direction):
+    """Non-linear equilibrium under 10 N at D moves D by K F within 0.5 %."""
+    x = poses[1]
+    force = 10.0 * np.asarray(direction) / np.linalg.norm(direction)
+    d_nonlinear, _ = deformed.loaded_equilibrium(proto.params, x, force)
+    d_linear = compliance(proto, x).translational @ force
+    err = np.linalg.norm(d_nonlinear - d_linear) / np.linalg.norm(d_linear)
+    assert err < 5e-3, f"non-linear vs K F: {err:.2%}"
+    assert err > 0  # the geometry is really non-linear: not the same computation twice
+
+
+def test_consistent_is_symmetric_positive_definite(proto, poses):
+    for x in poses:
+        k = compliance(proto, x, "consistent").matrix
+        assert rel(k, k.T) < 1e-13
+        assert np.linalg.eigvalsh((k + k.T) / 2).min() > 0
+
+
+def test_paper_model_differs_only_in_the_joint_torque_columns(proto, poses):
+    """Erratum 4: R drops t1, t2; both models agree in the F and T columns, not in t1, t2."""
+    for x in poses:
+        paper, cons = compliance(proto, x, "paper").matrix, compliance(proto, x, "consistent").matrix
+        assert rel(paper[:, :6], cons[:, :6]) < 1e-12
+        assert rel(paper[:, 6:], cons[:, 6:]) > 1e-3
+        assert rel(paper, paper.T) > 1e-3
+
+
+def test_mirror_symmetry_zeroes_the_y_couplings(proto, centre):
+    """The prototype is mirror-symmetric about y = 0: at the centre, y decouples from x and z."""
+    k = compliance(proto, centre).translational
+    assert np.max(np.abs(k[[0, 1, 1, 2], [1, 0, 2, 1]])) < 1e-12 * np.max(np.abs(k))
+
+
+def test_pinocchio_matrices_equal_cross_product_formulas(proto, poses):
+    """M1 rows w^T JB (Pinocchio) = eq. 6 cross products; M3 from Pinocchio = eq. 11; J = eq. 8."""
+    for x in poses:
+        pin_m = matrices(proto, x)
+        cf = matrices_closed_form(proto.params, x, proto.inverse_geometry(x))
+        for name in ("M1", "M2", "J", "M3", "M4", "Jb"):
+            a, b = getattr(pin_m, name), getattr(cf, name)
+            assert rel(a, b) < 1e-12, name
+
+
+def test_rigid_motion_of_m1_recovers_j(proto, poses):
+    """M1^-1 M2 M3 (eqs. 6, 11) moves the plate as eq. 8 says, with d omega_k = -d theta."""
+    for x in poses:
+        m = matrices(proto, x)
+        g3 = np.linalg.solve(m.M1, m.M2 @ m.M3)
+        assert rel(g3[[0, 1, 2, 5]], m.J) < 1e-12
+        np.testing.assert_allclose(g3[[3, 4]], 0.0, atol=1e-12 * np.max(np.abs(g3)))
+        np.testing.assert_allclose(g3[6], -g3[5], atol=1e-12 * np.max(np.abs(g3)))
+        np.testing.assert_allclose(g3[7], -g3[5], atol=1e-12 * np.max(np.abs(g3)))
+
+
+def test_batch_equals_single_pose(proto):
+    xs = sample_poses(proto, 40, seed=1)
+    for model in ("paper", "consistent"):
+        batch = compliance(proto, xs, model)
+        assert batch.matrix.shape == (40, 8, 8) and batch.terms["torsion"].shape == (40, 8, 8)
+        for n in (0, 17, 39):
+            single = compliance(proto, xs[n], model)
+            assert rel(batch.matrix[n], single.matrix) < 1e-12
+            for t in TERMS:
+                assert rel(batch.terms[t][n], single.terms[t]) < 1e-12
+        pin_batch = compliance(proto, xs[:5], model, method="pinocchio")
+        assert rel(pin_batch.matrix, batch.matrix[:5]) < 1e-12
+
+
+def test_singular_pose_is_an_error_with_the_condition_number(sym):
+    centre = sym.forward_geometry(np.full(4, np.pi / 4))
+    for method in ("pinocchio", "closed_form"):
+        with pytest.raises(SingularPoseError, match=r"cond = \d\.\d+e\+\d+"):
+            compliance(sym, centre, method=method)
+
+
+def test_batch_errors_name_the_first_bad_index(proto, sym):
+    xs = sample_poses(proto, 6)
+    bad = xs.copy()
+    bad[4, 2] -= 0.4
+    with pytest.raises(UnreachablePoseError, match="pose #4") as info:
+        compliance(proto, bad)
+    assert info.value.index == 4
+    res = compliance(proto, bad, on_error="nan")
+    np.testing.assert_array_equal(res.valid, [True, True, True, True, False, True])
+    assert np.isnan(res.matrix[4]).all() and np.isfinite(res.matrix[res.valid]).all()
+    centre = sym.forward_geometry(np.full(4, np.pi / 4))
+    ys = np.vstack([centre + [0.05, 0.02, 0, 0.1], centre])
+    with pytest.raises(SingularPoseError, match="pose #1"):
+        compliance(sym, ys)
+    assert compliance(sym, ys, on_error="nan").valid.tolist() == [True, False]
+
+
+@pytest.mark.parametrize("bad", [[0, 0, -0.6], [0, 0, np.inf, 0], [[0, 0, -0.6, 0, 0]]])
+def test_bad_input_is_a_clear_error(proto, bad):
+    with pytest.raises(PoseError):
+        compliance(proto, bad)
+
+
+def test_bad_options(proto, centre):
+    with pytest.raises(ValueError, match="model"):
+        compliance(proto, centre, model="exact")
+    with pytest.raises(ValueError, match="on_error"):
+        compliance(proto, centre, on_error="ignore")
