@@ -34,6 +34,15 @@ class Points(NamedTuple):
     Aij: np.ndarray  #: (..., 4, 2, 3) forearm-side ball joints
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis (3), broadcast; several times faster than ``np.cross`` on
+    the small arrays of this package."""
+    a, b = np.asarray(a), np.asarray(b)
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+
+
 def as_poses(pose: np.ndarray | list | tuple) -> np.ndarray:
     """Check and convert a pose (4,) or a batch (N, 4) to float64; clear error otherwise."""
     try:
@@ -52,15 +61,20 @@ def as_poses(pose: np.ndarray | list | tuple) -> np.ndarray:
 def rot_z(theta: np.ndarray) -> np.ndarray:
     """Rz(theta), shape (..., 3, 3)."""
     c, s = np.cos(theta), np.sin(theta)
-    o, i = np.zeros_like(c), np.ones_like(c)
-    return np.stack([np.stack([c, -s, o], -1), np.stack([s, c, o], -1), np.stack([o, o, i], -1)], -2)
+    out = np.zeros((*np.shape(theta), 3, 3))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    out[..., 2, 2] = 1.0
+    return out
 
 
 def plate_points(params: H4Params, pose: np.ndarray) -> tuple[np.ndarray, ...]:
     """D, C_k, B_i, B_ij of a rigid pose: shapes (..., 3), (..., 2, 3), (..., 4, 3), (..., 4, 2, 3)."""
     D = pose[..., :3]
     rot = rot_z(pose[..., 3])
-    C = D[..., None, :] + np.einsum("...ab,bk->...ka", rot, params.DC)
+    C = D[..., None, :] + np.swapaxes(rot @ params.DC, -1, -2)
     B = C[..., LEG_LATERAL, :] + (params.DB - params.DC[:, LEG_LATERAL]).T
     Bij = B[..., :, None, :] + _SIGNS[:, None] * params.half_width * params.U.T[:, None, :]
     return D, C, B, Bij
@@ -122,8 +136,8 @@ def inverse_geometry(params: H4Params, pose: np.ndarray, *, on_error: str = "rai
     q = phi + delta
     # Elbow-out test for the + branch; switch to the - branch where it fails.
     A, _ = forearm_points(params, q)
-    cross = np.cross(A - params.P.T, B - A)
-    elbow = np.einsum("...ia,ia->...i", cross, params.U.T)
+    normal = cross(A - params.P.T, B - A)
+    elbow = np.einsum("...ia,ia->...i", normal, params.U.T)
     q = np.where(elbow > 0, q, phi - delta)
     q = (q + np.pi) % (2 * np.pi) - np.pi
     if on_error == "nan":
@@ -151,9 +165,9 @@ def jx_jq(params: H4Params, pose: np.ndarray, q: np.ndarray) -> tuple[np.ndarray
     D, C, B, _ = plate_points(params, pose)
     A, _ = forearm_points(params, q)
     w = B - A
-    lever = np.cross(_Z, (C - D[..., None, :])[..., LEG_LATERAL, :])
+    lever = cross(_Z, (C - D[..., None, :])[..., LEG_LATERAL, :])
     jx = np.concatenate([w, np.einsum("...ia,...ia->...i", w, lever)[..., None]], axis=-1)
-    dA = np.cross(params.U.T, A - params.P.T)
+    dA = cross(params.U.T, A - params.P.T)
     jq_diag = np.einsum("...ia,...ia->...i", w, dA)
     jq = jq_diag[..., :, None] * np.eye(4)
     return jx, jq

@@ -126,6 +126,9 @@ class H4Params:
             raise ParameterError(f"U columns must be unit vectors, got norms {norms.tolist()}")
         if np.any(np.abs(self.U[2]) > 1e-9):
             raise ParameterError(f"U columns must be horizontal (u_z = 0), got u_z = {self.U[2].tolist()}")
+        a = np.cross(self.U.T, [0.0, 0.0, 1.0]).T
+        a.setflags(write=False)
+        object.__setattr__(self, "_forearm_dirs", a)
         self._check_ball_joints()
 
     def _check_ball_joints(self) -> None:
@@ -148,8 +151,8 @@ class H4Params:
 
     @property
     def forearm_dirs(self) -> np.ndarray:
-        """a_i = u_i x z, the forearm directions at q = 0, shape (3, 4)."""
-        return np.cross(self.U.T, [0.0, 0.0, 1.0]).T
+        """a_i = u_i x z, the forearm directions at q = 0, shape (3, 4) (computed once)."""
+        return self._forearm_dirs
 
     def compliances(self) -> dict[str, float]:
         """The four spring compliances of eq. 30, SI: control 1/kc, bending phi^3 r/(3EI) and

@@ -114,9 +114,20 @@ class H4:
         self._q_lat = np.array([jidx(lateral_names(k + 1)["joint"]).idx_q for k in range(2)])
         self._build_constraints()
         order = [bar_names(i + 1, j + 1) for i in range(4) for j in range(2)]
-        self._fid_A = [self.frames[b["A"]] for b in order]
-        self._fid_B = [self.frames[b["B"]] for b in order]
         self._fid_D = self.frames["D"]
+        #: Frame ids of D, C_k, B_i, B_ij, P_i, A_i, A_ij in this order (31 frames).
+        self.point_frames = [self.frames[n] for n in (
+            ["D", "C_1", "C_2"] + [f"B_{i}" for i in range(1, 5)] + [b["B"] for b in order]
+            + [f"P_{i}" for i in range(1, 5)] + [f"A_{i}" for i in range(1, 5)] + [b["A"] for b in order])]
+        self._jid_lat = [self._jid[lateral_names(k + 1)["joint"]] for k in range(2)]
+        self._jid_act = [self._jid[leg_names(i + 1)["joint"]] for i in range(4)]
+        self._bar_lat = np.repeat(LEG_LATERAL, 2)
+        parents = [self.model.frames[f].parentJoint for f in self.point_frames]
+        self._point_joints = sorted(set(parents))
+        self._point_joint_index = np.array([self._point_joints.index(j) for j in parents])
+        self._point_local = np.array([self.model.frames[f].placement.translation for f in self.point_frames])
+        # B_ij - C_k in the frame of lateral bar k (rigid-plate geometry, used by assemble)
+        self._b_local = (params.plate_ball_centres() - params.DC.T[LEG_LATERAL][:, None, :]).reshape(8, 3)
 
     def _build_constraints(self) -> None:
         closures = {c[0]: c for c in closures_from_urdf(self.urdf, self.source)}
@@ -159,17 +170,19 @@ class H4:
         """
         return geometry.forward_geometry(self.params, q, guess)
 
-    def configuration(self, pose: np.ndarray) -> np.ndarray:
+    def configuration(self, pose: np.ndarray, q_act: np.ndarray | None = None) -> np.ndarray:
         """Full Pinocchio configuration (nq,) of a rigid pose, all 8 closures satisfied.
 
         Actuators from the inverse geometry; each bar's universal joint from the direction of
         B_ij - A_ij in the forearm frame (closed form); plate free-flyer at D with orientation
         Rz(theta); lateral joints at omega_k = -theta (the lateral bars only translate).
+        ``q_act`` (4,), the actuator angles of ``pose``, saves an inverse geometry when known.
         """
         x = geometry.as_poses(pose)
         if x.ndim != 1:
             raise ValueError(f"configuration takes a single pose (4,), got shape {x.shape}")
-        q_act = self.inverse_geometry(x)
+        if q_act is None:
+            q_act = self.inverse_geometry(x)
         return self._configuration(x, q_act)
 
     def _configuration(self, x: np.ndarray, q_act: np.ndarray) -> np.ndarray:
@@ -191,23 +204,20 @@ class H4:
         deflected shapes).
         """
         p = self.params
-        A, Aij = geometry.forearm_points(p, np.asarray(q_act, float))
-        bij = p.plate_ball_centres() - p.DC.T[LEG_LATERAL][:, None, :]  # B_ij - C_k in lateral frame
-        Bij = np.empty((4, 2, 3))
-        for k in range(2):
-            lat = rotation @ geometry.rot_z(omega[k])
-            c_k = d + rotation @ p.DC[:, k]
-            legs = LEG_LATERAL == k
-            Bij[legs] = c_k + bij[legs] @ lat.T
+        _, Aij = geometry.forearm_points(p, np.asarray(q_act, float))
+        lat = rotation @ geometry.rot_z(np.asarray(omega, float))  # (2, 3, 3)
+        c = d + (rotation @ p.DC).T  # (2, 3)
+        k = self._bar_lat
+        Bij = c[k] + np.einsum("nab,nb->na", lat[k], self._b_local)
         u = np.repeat(p.U.T, 2, axis=0)  # (8, 3), per bar
         a = np.repeat(p.forearm_dirs.T, 2, axis=0)
         qb = np.repeat(q_act, 2)
-        w = (Bij - Aij).reshape(8, 3)
+        w = Bij - Aij.reshape(8, 3)
         w = w / np.linalg.norm(w, axis=1, keepdims=True)
         # Bar direction in the forearm frame: Rot(u, -q) w (Rodrigues).
         c, s = np.cos(qb)[:, None], np.sin(qb)[:, None]
         uw = np.sum(u * w, axis=1, keepdims=True)
-        bar = w * c - np.cross(u, w) * s + u * uw * (1 - c)
+        bar = w * c - geometry.cross(u, w) * s + u * uw * (1 - c)
         # bar = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
         beta = np.arcsin(np.clip(np.sum(bar * u, axis=1), -1.0, 1.0))
         alpha = np.arctan2(-np.sum(bar * a, axis=1), -bar[:, 2])
@@ -246,13 +256,17 @@ class H4:
         """
         jc = pin.getConstraintsJacobian(self.model, self.data, self.constraint_models, self.constraint_datas)
         jp, ja = jc[:, self.v_pas], jc[:, self.v_act]
-        cond = np.linalg.cond(jp)
+        try:
+            inv = np.linalg.inv(jp)
+            cond = np.abs(jp).sum(0).max() * np.abs(inv).sum(0).max()  # 1-norm condition number
+        except np.linalg.LinAlgError:
+            cond = np.inf
         if not cond < SINGULAR_COND:
             raise SingularPoseError(f"the passive closure Jacobian is singular (cond = {cond:.2e}): "
                                     "the plate has an uncontrolled motion at this pose")
         s = np.zeros((self.model.nv, 4))
         s[self.v_act] = np.eye(4)
-        s[self.v_pas] = -np.linalg.solve(jp, ja)
+        s[self.v_pas] = -inv @ ja
         return s
 
     def jacobian(self, pose: np.ndarray) -> np.ndarray:
@@ -262,6 +276,10 @@ class H4:
         motion from the frame Jacobian of D (LOCAL_WORLD_ALIGNED), rows v_x, v_y, v_z, w_z.
         """
         self.compute(self.configuration(pose))
+        return self.plate_velocity_jacobian()
+
+    def plate_velocity_jacobian(self) -> np.ndarray:
+        """J (4, 4) of eq. 8 at the configuration of the last :meth:`compute`."""
         jd = pin.getFrameJacobian(self.model, self.data, self._fid_D, pin.LOCAL_WORLD_ALIGNED)
         return jd[[0, 1, 2, 5]] @ self.passive_map()
 
@@ -270,21 +288,36 @@ class H4:
         x = geometry.as_poses(pose)
         return geometry.jx_jq(self.params, x, self.inverse_geometry(x))
 
-    def plate_jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+    def plate_jacobians(self, points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """After :meth:`compute`: Jacobians of the B_ij (8, 3, 8) and A_ij (8, 3, 4) points.
 
         ``dB_ij = JB[n] dtp`` with ``dtp = [dD, dOmega, domega_1, domega_2]`` (world-aligned at
         D, relative lateral rotations), and ``dA_ij = JA[n] dq`` for actuator rotations. Both are
-        Pinocchio frame Jacobians (LOCAL_WORLD_ALIGNED); the plate columns are mapped from the
-        free-flyer's local velocity to dtp with the frame Jacobian of D.
+        Pinocchio Jacobians (LOCAL_WORLD_ALIGNED): the joint Jacobians of the lateral bars and
+        forearms, shifted to the points (``v_X = v_joint + w x (X - joint)``); the plate columns
+        are mapped from the free-flyer's local velocity to dtp with the frame Jacobian of D.
+        ``points``: :meth:`frame_points`, if already computed.
         """
         m, d = self.model, self.data
-        jd = pin.getFrameJacobian(m, d, self._fid_D, pin.LOCAL_WORLD_ALIGNED)[:, self._v_plate]
+        lwa = pin.LOCAL_WORLD_ALIGNED
+        jd = pin.getFrameJacobian(m, d, self._fid_D, lwa)[:, self._v_plate]
         to_tp = np.eye(8)
         to_tp[:6, :6] = jd[:, :6]  # dtp[:6] = J_D,ff v_ff; lateral columns are identity
-        jb = np.stack([pin.getFrameJacobian(m, d, f, pin.LOCAL_WORLD_ALIGNED)[:3, self._v_plate] for f in self._fid_B])
-        ja = np.stack([pin.getFrameJacobian(m, d, f, pin.LOCAL_WORLD_ALIGNED)[:3, self.v_act] for f in self._fid_A])
-        return np.linalg.solve(to_tp.T, jb.transpose(0, 2, 1)).transpose(0, 2, 1), ja
+        jlat = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self._v_plate] for j in self._jid_lat])
+        jact = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self.v_act] for j in self._jid_act])
+        pts = self.frame_points() if points is None else points
+        bij, aij = pts[7:15], pts[23:31]
+        jl, ja = jlat[self._bar_lat], jact[np.arange(8) // 2]
+        jb = jl[:, :3] - _cross_columns(bij - pts[1:3][self._bar_lat], jl[:, 3:])
+        ja = ja[:, :3] - _cross_columns(aij - pts[15:19][np.arange(8) // 2], ja[:, 3:])
+        return jb @ np.linalg.inv(to_tp), ja
+
+    def frame_points(self) -> np.ndarray:
+        """World positions (31, 3) of the frames D, C_k, B_i, B_ij, P_i, A_i, A_ij (in this order)
+        after :meth:`compute`: Pinocchio's joint placements applied to the frames' placements."""
+        rot = np.array([self.data.oMi[j].rotation for j in self._point_joints])
+        pos = np.array([self.data.oMi[j].translation for j in self._point_joints])
+        return pos[self._point_joint_index] + np.einsum("nab,nb->na", rot[self._point_joint_index], self._point_local)
 
     def frame_position(self, name: str) -> np.ndarray:
         """World position (3,) of a named frame after :meth:`compute` (or forwardKinematics +
@@ -317,6 +350,13 @@ class H4:
 
     def __repr__(self) -> str:
         return f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, closures={len(self.constraint_models)})"
+
+
+def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``r[n] x cols[n, :, c]`` for every n and column c: (n, 3) x (n, 3, m) -> (n, 3, m)."""
+    rx, ry, rz = (r[:, i, None] for i in range(3))
+    cx, cy, cz = cols[:, 0], cols[:, 1], cols[:, 2]
+    return np.stack([ry * cz - rz * cy, rz * cx - rx * cz, rx * cy - ry * cx], axis=1)
 
 
 __all__ = ["H4", "load", "urdf_dir", "variant_path", "LEG_LATERAL"]

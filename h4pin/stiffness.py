@@ -100,9 +100,9 @@ def m1_closed_form(pts: Points) -> np.ndarray:
     s_plus_t = pts.D[..., None, :] - bij
     m1 = np.zeros((*shape, 8, 8))
     m1[..., :3] = w
-    m1[..., 3:6] = np.cross(w, s_plus_t)
+    m1[..., 3:6] = geometry.cross(w, s_plus_t)
     lat = np.repeat(LEG_LATERAL, 2)
-    m1[..., np.arange(8), 6 + lat] = np.cross(w, t)[..., 2]
+    m1[..., np.arange(8), 6 + lat] = geometry.cross(w, t)[..., 2]
     return m1
 
 
@@ -130,7 +130,7 @@ def m3_closed_form(pts: Points, params: H4Params) -> np.ndarray:
     """
     shape = pts.Aij.shape[:-3]
     p = (pts.P[:, None, :] - pts.Aij).reshape(*shape, 8, 3)
-    col = np.cross(p, _per_bar_leg(np.broadcast_to(params.U.T, (*shape, 4, 3))))
+    col = geometry.cross(p, _per_bar_leg(np.broadcast_to(params.U.T, (*shape, 4, 3))))
     out = np.zeros((*shape, 32, 4))
     for n in range(8):
         out[..., 3 * n:3 * n + 3, n // 2] = col[..., n, :]
@@ -150,14 +150,11 @@ def m4(pts: Points) -> np.ndarray:
     r = r / np.linalg.norm(r, axis=-1, keepdims=True)
     wl = pts.B - pts.A
     wl = wl / np.linalg.norm(wl, axis=-1, keepdims=True)
-    pr = np.cross(p, _per_bar_leg(r))  # (..., 8, 3)
+    pr = geometry.cross(p, _per_bar_leg(r))  # (..., 8, 3)
     c = np.einsum("...na,...na->...n", pr, _per_bar_leg(wl))  # (..., 8)
-    out = np.zeros((*shape, 32, 8))
-    for n in range(8):
-        i = n // 2
-        for j2 in (2 * i, 2 * i + 1):
-            out[..., 3 * n:3 * n + 3, j2] = pr[..., n, :] * c[..., j2, None]
-    return out
+    same_leg = np.equal.outer(np.arange(8) // 2, np.arange(8) // 2)  # (bar n, column n')
+    spar_n = pr[..., :, :, None] * (c[..., None, None, :] * same_leg[:, None, :])  # (..., 8, 3, 8)
+    return np.concatenate([spar_n.reshape(*shape, 24, 8), np.zeros((*shape, 8, 8))], axis=-2)
 
 
 def jb_from_m1(m1: np.ndarray, l: np.ndarray) -> np.ndarray:
@@ -179,21 +176,15 @@ def matrices_closed_form(params: H4Params, pose: np.ndarray, q: np.ndarray) -> M
                     jb_from_m1(M1, l), R_PAPER, l)
 
 
-def points_from_pinocchio(h4: H4) -> Points:
-    """The characteristic points from Pinocchio's frame placements (after ``h4.compute(q)``)."""
-    pos = h4.frame_position
-    return Points(
-        D=pos("D"),
-        C=np.array([pos(f"C_{k}") for k in (1, 2)]),
-        B=np.array([pos(f"B_{i}") for i in range(1, 5)]),
-        Bij=np.array([[pos(f"B_{i}{j}") for j in (1, 2)] for i in range(1, 5)]),
-        P=np.array([pos(f"P_{i}") for i in range(1, 5)]),
-        A=np.array([pos(f"A_{i}") for i in range(1, 5)]),
-        Aij=np.array([[pos(f"A_{i}{j}") for j in (1, 2)] for i in range(1, 5)]),
-    )
+def points_from_pinocchio(h4: H4, xyz: np.ndarray | None = None) -> Points:
+    """The characteristic points from Pinocchio's frame placements (after ``h4.compute(q)``);
+    ``xyz``: :meth:`h4pin.H4.frame_points`, if already computed."""
+    xyz = h4.frame_points() if xyz is None else xyz
+    return Points(D=xyz[0], C=xyz[1:3], B=xyz[3:7], Bij=xyz[7:15].reshape(4, 2, 3), P=xyz[15:19], A=xyz[19:23],
+                  Aij=xyz[23:31].reshape(4, 2, 3))
 
 
-def matrices(h4: H4, pose: np.ndarray) -> Matrices:
+def matrices(h4: H4, pose: np.ndarray, q: np.ndarray | None = None) -> Matrices:
     """All the paper's matrices at one pose, through Pinocchio.
 
     * M1 (eq. 6): row n is ``w_ij^T JB_ij`` with JB_ij the Pinocchio Jacobian of frame B_ij in
@@ -202,28 +193,24 @@ def matrices(h4: H4, pose: np.ndarray) -> Matrices:
     * M3 (eq. 11): rows of leg i are the Jacobians of frames A_i1, A_i2 w.r.t. actuator i;
     * M2, M4, M5, Jb, R: formulas of eqs. 6, 23, 27, 16, 30 on the Pinocchio frame positions.
 
+    ``q`` (4,), the actuator angles of ``pose``, saves an inverse geometry when already known.
+
     Raises:
         UnreachablePoseError, SingularPoseError: as :func:`compliance`.
     """
     x = geometry.as_poses(pose)
     if x.ndim != 1:
         raise PoseError(f"matrices takes one pose (4,), got shape {x.shape}; use matrices_closed_form for a batch")
-    h4.compute(h4.configuration(x))
-    pts = points_from_pinocchio(h4)
+    h4.compute(h4.configuration(x, q))
+    xyz = h4.frame_points()
+    pts = points_from_pinocchio(h4, xyz)
     w, l = _bars(pts)
-    jb, ja = h4.plate_jacobians()
+    jb, ja = h4.plate_jacobians(xyz)
     M1 = np.einsum("na,nab->nb", w, jb)
     M3 = np.zeros((32, 4))
     M3[:24] = ja.reshape(24, 4)
-    jd = _frame_jacobian_d(h4)
-    J = jd[[0, 1, 2, 5]] @ h4.passive_map()
+    J = h4.plate_velocity_jacobian()
     return Matrices(M1, m2(pts), J, M3, m4(pts), M5, jb_from_m1(M1, l), R_PAPER, l)
-
-
-def _frame_jacobian_d(h4: H4) -> np.ndarray:
-    import pinocchio as pin
-
-    return pin.getFrameJacobian(h4.model, h4.data, h4.frames["D"], pin.LOCAL_WORLD_ALIGNED)
 
 
 def _inverse_m1(m1: np.ndarray, first_index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -351,6 +338,10 @@ def compliance(h4: H4, pose: np.ndarray, model: str = "paper", *, on_error: str 
     if method == "auto":
         method = "pinocchio" if single else "closed_form"
     xb = x[None] if single else x
+    if method == "pinocchio" and single and on_error == "raise":
+        q = h4.inverse_geometry(x)
+        terms = terms_from_matrices(matrices(h4, x, q), h4.params, model)
+        return Compliance(sum(terms.values()), terms, x, q, model, None)
     if method == "pinocchio":
         return _pinocchio_batch(h4, xb, model, on_error, single)
     return _closed_form_batch(h4.params, xb, model, on_error, single)
@@ -371,7 +362,7 @@ def _pinocchio_batch(h4: H4, x: np.ndarray, model: str, on_error: str, single: b
     for n, xn in enumerate(x):
         try:
             q[n] = h4.inverse_geometry(xn)
-            one = terms_from_matrices(matrices(h4, xn), h4.params, model)
+            one = terms_from_matrices(matrices(h4, xn, q[n]), h4.params, model)
         except (UnreachablePoseError, SingularPoseError) as exc:
             if on_error == "raise":
                 raise type(exc)(str(exc), None if single else n) from None
