@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""Speed of h4pin's compliance, printed as a table (nothing here is asserted by the tests).
+
+Rows: the vectorised batch path (eq. 30 with the inverse geometry, model "paper"), the
+single-pose path through Pinocchio's Jacobians, a straightforward per-pose numpy implementation
+of eq. 30 (loops, np.cross, explicit inverses: what one writes first), and the two validation
+routes. The naive implementation is also compared to h4pin's result, so the table is only
+printed if both agree.
+
+    python scripts/bench.py [--batch 100000] [--repeat 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+import h4pin
+from h4pin import deformed, statics
+from h4pin.params import LEG_LATERAL, H4Params
+from h4pin.stiffness import compliance
+from h4pin.table2 import centre_pose
+
+
+def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
+    """Eq. 30 ("paper" model) for one pose, written plainly with per-bar loops."""
+    x, y, z, th = pose
+    d = np.array([x, y, z])
+    rz = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
+    zz = np.array([0.0, 0.0, 1.0])
+    c = [d + rz @ p.DC[:, k] for k in range(2)]
+    q = np.zeros(4)
+    A, B, Aij, Bij = [], [], [], []
+    for i in range(4):
+        k = LEG_LATERAL[i]
+        u = p.U[:, i]
+        a = np.cross(u, zz)
+        b = c[k] + p.DB[:, i] - p.DC[:, k]
+        e = b - p.P[:, i]
+        rhs = (e @ e + p.r**2 - p.l**2) / (2 * p.r)
+        phi = np.arctan2(-e[2], e @ a)
+        for sign in (1, -1):
+            q[i] = phi + sign * np.arccos(rhs / np.hypot(e @ a, e[2]))
+            ai = p.P[:, i] + p.r * (a * np.cos(q[i]) - zz * np.sin(q[i]))
+            if u @ np.cross(ai - p.P[:, i], b - ai) > 0:
+                break
+        A.append(ai)
+        B.append(b)
+        for s in (1, -1):
+            Aij.append(ai + s * p.half_width * u)
+            Bij.append(b + s * p.half_width * u)
+    m1, m2, m3, m4 = np.zeros((8, 8)), np.zeros((8, 32)), np.zeros((32, 4)), np.zeros((32, 8))
+    jx, jq = np.zeros((4, 4)), np.zeros((4, 4))
+    lengths = np.zeros(8)
+    for i in range(4):
+        k = LEG_LATERAL[i]
+        w = B[i] - A[i]
+        jx[i] = np.r_[w, w @ np.cross(zz, c[k] - d)]
+        jq[i, i] = w @ np.cross(p.U[:, i], A[i] - p.P[:, i])
+        ri = (p.P[:, i] - A[i]) / np.linalg.norm(p.P[:, i] - A[i])
+        wi = w / np.linalg.norm(w)
+        for j in range(2):
+            n = 2 * i + j
+            wij = Bij[n] - Aij[n]
+            lengths[n] = np.linalg.norm(wij)
+            t = c[k] - Bij[n]
+            m1[n, :3] = wij
+            m1[n, 3:6] = np.cross(wij, d - c[k] + t)
+            m1[n, 6 + k] = np.cross(wij, t)[2]
+            m2[n, 3 * n:3 * n + 3] = wij
+            m2[n, 24 + n] = lengths[n]
+            pij = p.P[:, i] - Aij[n]
+            m3[3 * n:3 * n + 3, i] = np.cross(pij, p.U[:, i])
+            for j2 in range(2):
+                pij2 = p.P[:, i] - Aij[2 * i + j2]
+                m4[3 * n:3 * n + 3, 2 * i + j2] = np.cross(pij, ri) * (np.cross(pij2, ri) @ wi)
+    m5 = np.vstack([np.zeros((24, 8)), np.eye(8)])
+    r = np.zeros((4, 8))
+    r[[0, 1, 2, 3], [0, 1, 2, 5]] = 1
+    j = np.linalg.inv(jx) @ jq
+    jb_inv = np.linalg.inv(m1.T @ np.diag(1 / lengths))
+    cc = p.compliances()
+    inner = ((cc["control"] + cc["bending"]) * m3 @ j.T @ r + cc["torsion"] * m4 @ jb_inv
+             + cc["tension"] * m5 @ jb_inv)
+    return np.linalg.inv(m1) @ m2 @ inner
+
+
+def best_of(repeat: int, fn) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--batch", type=int, default=100_000, help="poses in the batch row")
+    parser.add_argument("--repeat", type=int, default=3, help="best of this many runs per row")
+    args = parser.parse_args()
+    h4 = h4pin.load("prototype")
+    rng = np.random.default_rng(0)
+    poses = centre_pose(h4) + rng.uniform(-1, 1, (args.batch, 4)) * [0.1, 0.1, 0.06, 0.4]
+    poses = poses[np.all(np.isfinite(h4.inverse_geometry(poses, on_error="nan")), axis=1)]
+    n_single = 2000
+    few = poses[:n_single]
+
+    t_batch = best_of(args.repeat, lambda: compliance(h4, poses, "paper"))
+    t_batch_c = best_of(args.repeat, lambda: compliance(h4, poses, "consistent"))
+    t_single = best_of(args.repeat, lambda: [compliance(h4, x, "paper") for x in few]) / n_single
+    t_naive = best_of(args.repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
+    t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.params, x) for x in few[:200]]) / 200
+    t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.params, x) for x in few[:5]]) / 5
+
+    ours = compliance(h4, few[:50], "paper").matrix
+    naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])
+    agree = np.max(np.abs(ours - naive)) / np.max(np.abs(ours))
+    if agree > 1e-10:
+        raise SystemExit(f"naive eq. 30 and h4pin disagree: {agree:.1e} relative")
+
+    per_pose = t_batch / len(poses)
+    print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {len(poses)} batch poses, "
+          f"best of {args.repeat} (naive vs h4pin: {agree:.1e} relative)\n")
+    print(f"| {'path':<52} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} |")
+    print(f"|{'-' * 54}|{'-' * 12}|{'-' * 11}|{'-' * 10}|")
+    rows = [
+        ("batch, model 'paper', incl. inverse geometry", per_pose),
+        ("batch, model 'consistent', incl. inverse geometry", t_batch_c / len(poses)),
+        ("single pose through Pinocchio's Jacobians", t_single),
+        ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t_naive),
+        ("validation: Newton-Euler statics route", t_statics),
+        ("validation: finite-difference route (non-linear)", t_fd),
+    ]
+    for name, t in rows:
+        print(f"| {name:<52} | {1 / t:>10.0f} | {t * 1e6:>9.1f} | {t_naive / t:>7.1f}x |")
+
+
+if __name__ == "__main__":
+    main()
