@@ -233,7 +233,7 @@ class H4:
         """Position errors of the 8 closures at configuration q, (8, 3) in m, from Pinocchio."""
         pin.forwardKinematics(self.model, self.data, q)
         out = np.empty((8, 3))
-        for n, (cm, cd) in enumerate(zip(self.constraint_models, self.constraint_datas)):
+        for n, (cm, cd) in enumerate(zip(self.constraint_models, self.constraint_datas, strict=True)):
             cm.calc(self.model, self.data, cd)
             out[n] = cd.c1Mc2.translation
         return out
@@ -243,7 +243,7 @@ class H4:
         """Run Pinocchio's kinematics, joint Jacobians, frames and closures at configuration q."""
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
-        for cm, cd in zip(self.constraint_models, self.constraint_datas):
+        for cm, cd in zip(self.constraint_models, self.constraint_datas, strict=True):
             cm.calc(self.model, self.data, cd)
 
     def passive_map(self) -> np.ndarray:
@@ -349,7 +349,8 @@ class H4:
         return float(pin.computePotentialEnergy(self.model, self.data, self.configuration(pose)))
 
     def __repr__(self) -> str:
-        return f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, closures={len(self.constraint_models)})"
+        return (f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, "
+                f"closures={len(self.constraint_models)})")
 
 
 def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:

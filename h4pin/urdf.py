@@ -127,7 +127,8 @@ class _Body:
                 ii + mi * (np.dot(ci - com, ci - com) * np.eye(3) - np.outer(ci - com, ci - com))
                 for mi, ci, ii in self.masses
             )
-            ixx, ixy, ixz, iyy, iyz, izz = inertia[0, 0], inertia[0, 1], inertia[0, 2], inertia[1, 1], inertia[1, 2], inertia[2, 2]
+            ixx, ixy, ixz = inertia[0]
+            iyy, iyz, izz = inertia[1, 1], inertia[1, 2], inertia[2, 2]
             out += [
                 "    <inertial>",
                 f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
@@ -370,7 +371,8 @@ def check_tree(root: ET.Element, p: H4Params, where: str = "URDF", tol: float = 
 
     def agree(name: str, got: np.ndarray, want: np.ndarray, what: str) -> None:
         if not np.allclose(got, want, atol=tol, rtol=0):
-            raise MalformedURDFError(f"{where}: {what} of '{name}' is {got.tolist()}, <h4_parameters> says {want.tolist()}")
+            raise MalformedURDFError(
+                f"{where}: {what} of '{name}' is {got.tolist()}, <h4_parameters> says {want.tolist()}")
 
     for i in range(4):
         n = leg_names(i + 1)
@@ -396,16 +398,18 @@ def check_tree(root: ET.Element, p: H4Params, where: str = "URDF", tol: float = 
             b = bar_names(i + 1, jj + 1)
             c = closures.get(b["closure"])
             if c is None:
-                raise MalformedURDFError(f"{where}: loop closure '{b['closure']}' (bar {i + 1}{jj + 1} on the plate) is missing")
+                raise MalformedURDFError(
+                    f"{where}: loop closure '{b['closure']}' (bar {i + 1}{jj + 1} on the plate) is missing")
             for side in ("parent", "child"):
                 link = _attr(c.find(side), "link", where, f"<{side}> of closure '{b['closure']}'")
                 if link not in links:
                     raise MalformedURDFError(f"{where}: closure '{b['closure']}' names unknown link '{link}'")
             want_parent, want_child = b["bar"], lateral_names(k + 1)["link"]
             if (c.find("parent").get("link"), c.find("child").get("link")) != (want_parent, want_child):  # type: ignore[union-attr]
-                raise MalformedURDFError(f"{where}: closure '{b['closure']}' must join '{want_parent}' to '{want_child}'")
-            po = _floats(_attr(c.find("parent_origin"), "xyz", where, f"<parent_origin> of '{b['closure']}'"), 3, where, "xyz")
-            co = _floats(_attr(c.find("child_origin"), "xyz", where, f"<child_origin> of '{b['closure']}'"), 3, where, "xyz")
+                raise MalformedURDFError(
+                    f"{where}: closure '{b['closure']}' must join '{want_parent}' to '{want_child}'")
+            po, co = (_floats(_attr(c.find(f"{side}_origin"), "xyz", where, f"<{side}_origin> of '{b['closure']}'"),
+                              3, where, "xyz") for side in ("parent", "child"))
             agree(b["closure"], po, np.array([0.0, 0.0, -p.l]), "parent_origin")
             agree(b["closure"], co, bij[i, jj] - p.DC[:, k], "child_origin")
 
@@ -419,7 +423,8 @@ def closures_from_urdf(text: str, where: str = "URDF") -> list[tuple[str, str, n
         parts = []
         for side in ("parent", "child"):
             link = _attr(c.find(side), "link", where, f"<{side}> of closure '{name}'")
-            xyz = _floats(_attr(c.find(f"{side}_origin"), "xyz", where, f"<{side}_origin> of '{name}'"), 3, where, "xyz")
+            origin = _attr(c.find(f"{side}_origin"), "xyz", where, f"<{side}_origin> of '{name}'")
+            xyz = _floats(origin, 3, where, "xyz")
             parts += [link, xyz]
         out.append((name, *parts))
     return out

@@ -95,8 +95,8 @@ def gap_factors() -> list[tuple[str, float, np.ndarray]]:
 
 def plot(results: dict[str, np.ndarray], path: Path) -> None:
     fig, axes = plt.subplots(2, 4, figsize=(16, 7.5), sharey=True)
-    colours = dict(zip(ENTRIES, ("C0", "C1", "C2", "C3")))
-    for ax, (name, (label, values, _, default)) in zip(axes.flat, SWEEPS.items()):
+    colours = dict(zip(ENTRIES, ("C0", "C1", "C2", "C3"), strict=True))
+    for ax, (name, (label, values, _, default)) in zip(axes.flat, SWEEPS.items(), strict=True):
         scale = 1e3 if "mm" in label else 1.0
         for n, e in enumerate(ENTRIES):
             ax.plot(values * scale, results[name][:, n], "o-", color=colours[e], label=f"K_{e}")
@@ -138,7 +138,7 @@ def main() -> None:
     for name, (label, values, _, default) in SWEEPS.items():
         print(f"\n{name} ({label})")
         scale = 1e3 if "mm" in label else 1.0
-        for v, row in zip(values, results[name]):
+        for v, row in zip(values, results[name], strict=True):
             mark = "  <- default" if np.isclose(v, default) else ""
             print(f"  {v * scale:<38.3g}" + "".join(f"{x:8.1f}" for x in row) + mark)
     print("\nScale one spring family's compliance until xx = 40 um/N (paper, computed):")

@@ -118,8 +118,8 @@ def test_gravity_torques_against_potential_energy(proto, poses):
     for x in poses[:4]:
         q = proto.inverse_geometry(x)
 
-        def energy(qa):
-            return proto.potential_energy(proto.forward_geometry(qa, guess=x))
+        def energy(qa, guess=x):
+            return proto.potential_energy(proto.forward_geometry(qa, guess=guess))
 
         fd = np.array([(energy(q + h * e) - energy(q - h * e)) / (2 * h) for e in np.eye(4)])
         tau = proto.gravity_torques(x)

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import sample_poses
 
 from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, load, statics
 from h4pin.stiffness import TERMS, compliance, matrices, matrices_closed_form
-from tests.conftest import sample_poses
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
