@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -30,7 +29,7 @@ def fail(message: str) -> None:
     raise typer.Exit(2)
 
 
-def load_robot(variant: Optional[str], urdf: Optional[Path]):  # noqa: UP007 (typer needs Optional on 3.10)
+def load_robot(variant: str | None, urdf: Path | None):
     """The robot named by ``--variant`` or ``--urdf`` (not both)."""
     from h4pin.robot import load
 
@@ -41,8 +40,8 @@ def load_robot(variant: Optional[str], urdf: Optional[Path]):  # noqa: UP007 (ty
 
 @app.command()
 def table2(
-    variant: Optional[str] = typer.Option(None, help="shipped variant (default: prototype)"),  # noqa: UP007
-    urdf: Optional[Path] = typer.Option(None, help="path to an H4 URDF instead of a variant"),  # noqa: UP007
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
     model: str = typer.Option("paper", help="'paper' (eq. 30 as printed) or 'consistent' (erratum 4 fixed)"),
 ) -> None:
     """Table II of the paper: compliance at q_i = 45 deg beside the paper's computed and measured tables."""
