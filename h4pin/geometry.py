@@ -192,8 +192,8 @@ def forward_geometry(
     Args:
         params: Robot parameters.
         q: (4,) actuator angles, rad.
-        guess: Starting pose; default: below the centre of the actuators at z = -(r + l) / 2...
-            a pose roughly under the base, refined by Newton.
+        guess: Starting pose. Default: theta = 0, D under the mean of the A_i (shifted by the mean
+            of DB) at the depth that gives the bars their length on average.
         tol: Convergence threshold on the closure residual, m^2.
         max_iter: Iteration cap.
 
