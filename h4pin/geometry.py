@@ -124,21 +124,20 @@ def inverse_geometry(params: H4Params, pose: np.ndarray, *, on_error: str = "rai
     if np.any(bad) and on_error == "raise":
         flat = bad.reshape(-1, 4)
         n, leg = np.argwhere(flat)[0]
-        dist = np.linalg.norm(e.reshape(-1, 4, 3)[n, leg])
+        # |B - A(q)|^2 = |e|^2 + r^2 - 2 r (e.a cos q - e.z sin q) spans |e|^2 + r^2 -+ 2 r rho.
+        e2 = float(np.sum(e.reshape(-1, 4, 3)[n, leg] ** 2))
+        rh = float(rho.reshape(-1, 4)[n, leg])
+        lo, hi = (np.sqrt(max(e2 + params.r**2 + s * 2 * params.r * rh, 0.0)) for s in (-1, 1))
         raise UnreachablePoseError(
-            f"leg {leg + 1} cannot reach B_{leg + 1}: |B-P| = {dist * 1e3:.1f} mm, the leg spans "
-            f"{abs(params.r - params.l) * 1e3:.1f} to {(params.r + params.l) * 1e3:.1f} mm in its plane",
+            f"leg {leg + 1} cannot reach B_{leg + 1}: over all actuator angles |B_{leg + 1} - A_{leg + 1}| "
+            f"spans {lo * 1e3:.1f} to {hi * 1e3:.1f} mm, the bars are {params.l * 1e3:.1f} mm long",
             int(n) if x.ndim == 2 else None,
         )
-    # A cos q + Bc sin q = c with A = e.a, Bc = -e.z; q = phi +- acos(c / rho), phi = atan2(Bc, A).
+    # A cos q + Bc sin q = c with A = e.a, Bc = -e.z: q = phi +- delta, phi = atan2(Bc, A).
+    # Elbow out: u.((A - P) x (B - A)) = u.((A - P) x e) = -r (e.z cos q + e.a sin q)
+    # = -r rho sin(q - phi), positive for q = phi - delta (delta = acos(c / rho) in [0, pi]).
     phi = np.arctan2(-ez, ea)
-    delta = np.arccos(np.clip(ratio, -1.0, 1.0))
-    q = phi + delta
-    # Elbow-out test for the + branch; switch to the - branch where it fails.
-    A, _ = forearm_points(params, q)
-    normal = cross(A - params.P.T, B - A)
-    elbow = np.einsum("...ia,ia->...i", normal, params.U.T)
-    q = np.where(elbow > 0, q, phi - delta)
+    q = phi - np.arccos(np.clip(ratio, -1.0, 1.0))
     q = (q + np.pi) % (2 * np.pi) - np.pi
     if on_error == "nan":
         q = np.where(bad.any(axis=-1, keepdims=True), np.nan, q)
