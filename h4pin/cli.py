@@ -50,13 +50,65 @@ def table2(
     typer.echo(report(load_robot(variant, urdf), model=model))
 
 
-def main() -> None:
-    """Entry point of the ``h4pin`` console script."""
+@app.command()
+def view(
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    pose: tuple[float, float, float, float] | None = typer.Option(
+        None, metavar="X Y Z THETA", help="pose of D in m and rad (default: all actuators at 45 deg)"),
+    load: tuple[float, float, float] | None = typer.Option(
+        None, metavar="FX FY FZ", help="force at D in N: draws the deflected robot and the load"),
+    field: bool = typer.Option(False, "--field", help="also draw an ellipsoid field over the workspace"),
+    rotational: bool = typer.Option(False, "--rotational", help="also draw the rotational ellipsoid"),
+    html: Path | None = typer.Option(None, help="write a self-contained page here and exit (no server)"),
+    scale: float | None = typer.Option(None, help="ellipsoid scale, mm per um/N (default: automatic)"),
+    exaggeration: float | None = typer.Option(None, help="factor on the drawn deflection (default: automatic)"),
+    model: str = typer.Option("consistent", help="'consistent' (symmetric K) or 'paper'"),
+) -> None:
+    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser)."""
+    import time
+
+    from h4pin import viewer
+
+    if html is not None and not html.parent.is_dir():
+        fail(f"cannot write {html}: folder {html.parent} does not exist")
+    h4 = load_robot(variant, urdf)
+    scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
+                        scale=scale, exaggeration=exaggeration, field=field, rotational=rotational, model=model)
     try:
-        app()
+        for line in scene.legend:
+            typer.echo(line)
+        if html is not None:
+            typer.echo(f"wrote {scene.write_html(html)}")
+            return
+        typer.echo(f"meshcat: {scene.url}  (Ctrl-C to stop the server)")
+        while True:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        typer.echo("stopped")
+    finally:
+        scene.close()
+
+
+def main() -> None:
+    """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
+    try:
+        code = app(standalone_mode=False)
     except (H4Error, ValueError, FileNotFoundError) as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Exception as exc:
+        # Usage errors of typer's click (vendored or not): one line instead of a usage box.
+        if hasattr(exc, "format_message"):
+            if exc.format_message():  # empty after the help printed for a bare `h4pin`
+                typer.echo(f"error: {exc.format_message()}", err=True)
+            sys.exit(2)
+        if hasattr(exc, "exit_code"):
+            sys.exit(exc.exit_code)
+        raise
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":
