@@ -125,3 +125,26 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
     assert out.returncode == 2
     assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert not target.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_cli_server_stops_cleanly_on_ctrl_c():
+    """Without --html: the URL is printed, and SIGINT stops the command and its meshcat server."""
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "h4pin.cli", "view"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 60
+        line = ""
+        while "meshcat: http" not in line and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+        assert "meshcat: http" in line, proc.stderr.read() if proc.poll() is not None else "no URL printed"
+        assert our_processes("meshcat.servers.zmqserver"), "no meshcat server is running"
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0
+        assert "stopped" in proc.stdout.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
