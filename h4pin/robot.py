@@ -25,6 +25,10 @@ from h4pin.errors import MalformedURDFError, SingularPoseError
 from h4pin.params import LEG_LATERAL, VARIANTS, H4Params
 from h4pin.urdf import bar_names, closures_from_urdf, lateral_names, leg_names, params_from_urdf, to_urdf
 
+#: Frames every H4 URDF names (massless links on fixed joints, see :mod:`h4pin.urdf`).
+REQUIRED_FRAMES = (["D", "C_1", "C_2"] + [f"{p}_{i}" for p in "PAB" for i in range(1, 5)]
+                   + [f"{p}_{i}{j}" for p in "AB" for i in range(1, 5) for j in (1, 2)])
+
 #: Condition number of the passive closure Jacobian above which a pose is called singular.
 SINGULAR_COND = 1e10
 
@@ -99,6 +103,9 @@ class H4:
         self.data = self.model.createData()
         self.frames = {f.name: i for i, f in enumerate(self.model.frames)}
         self._jid = {name: i for i, name in enumerate(self.model.names)}
+        missing = [n for n in REQUIRED_FRAMES if n not in self.frames]
+        if missing:
+            raise MalformedURDFError(f"{source}: frame(s) {', '.join(missing)} missing (see h4pin.urdf)")
 
         def jidx(name: str) -> pin.JointModel:
             return self.model.joints[self._jid[name]]

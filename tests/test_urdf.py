@@ -72,6 +72,8 @@ def _mutate(old: str, new: str, count: int = 1) -> str:
         (_mutate('<child link="lateral_bar_2"/>\n    <child_origin', '<child link="nowhere"/>\n    <child_origin'),
          "unknown link 'nowhere'"),
         (_mutate(' kc="7400.0"', ""), "'kc'"),
+        (_mutate('<link name="D"/>', '<link name="E"/>').replace('<child link="D"/>', '<child link="E"/>'),
+         "frame.s. D missing"),
         (_mutate(' Eb="200000000000.0"', ""), "'Eb'"),
         (_mutate("<h4_parameters", "<h4_not_parameters").replace("</h4_parameters>", "</h4_not_parameters>"),
          "h4_parameters"),
@@ -82,7 +84,8 @@ def _mutate(old: str, new: str, count: int = 1) -> str:
         ("<robot name='x'><link name='a'/>", "not well-formed"),
         ("<sdf/>", "not <robot>"),
     ],
-    ids=["missing closure", "unknown frame", "missing kc", "missing Eb", "no parameters", "wrong joint type",
+    ids=["missing closure", "unknown frame", "missing kc", "missing named frame", "missing Eb", "no parameters",
+         "wrong joint type",
          "tree disagrees", "not xml", "not urdf"],
 )
 def test_malformed_urdf_is_a_clear_error(text, message, tmp_path):
