@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from h4pin import geometry
 from h4pin.robot import H4
-from h4pin.stiffness import R_CONSISTENT, R_PAPER, compliance, matrices
+from h4pin.stiffness import R_CONSISTENT, R_PAPER, matrices, terms_from_matrices
 
 
 def as_load(load: np.ndarray | list | tuple) -> np.ndarray:
@@ -35,8 +35,8 @@ def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consist
     """
     x = geometry.as_poses(pose)
     g = as_load(load)
-    dtp = compliance(h4, x, model).matrix @ g
     mats = matrices(h4, x)
+    dtp = sum(terms_from_matrices(mats, h4.params, model).values()) @ g
     r = R_PAPER if model == "paper" else R_CONSISTENT
     c = h4.params.compliances()
     dq = (c["control"] + c["bending"]) * (mats.J.T @ r @ g)
