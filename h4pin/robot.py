@@ -133,8 +133,11 @@ class H4:
         self._point_joints = sorted(set(parents))
         self._point_joint_index = np.array([self._point_joints.index(j) for j in parents])
         self._point_local = np.array([self.model.frames[f].placement.translation for f in self.point_frames])
-        # B_ij - C_k in the frame of lateral bar k (rigid-plate geometry, used by assemble)
+        # Per-bar constants of assemble: B_ij - C_k in the frame of lateral bar k, u_i and a_i.
         self._b_local = (params.plate_ball_centres() - params.DC.T[LEG_LATERAL][:, None, :]).reshape(8, 3)
+        self._u_bar = np.repeat(params.U.T, 2, axis=0)
+        self._a_bar = np.repeat(params.forearm_dirs.T, 2, axis=0)
+        self._q_neutral = pin.neutral(self.model)
 
     def _build_constraints(self) -> None:
         closures = {c[0]: c for c in closures_from_urdf(self.urdf, self.source)}
@@ -213,14 +216,13 @@ class H4:
         p = self.params
         _, Aij = geometry.forearm_points(p, np.asarray(q_act, float))
         lat = rotation @ geometry.rot_z(np.asarray(omega, float))  # (2, 3, 3)
-        c = d + (rotation @ p.DC).T  # (2, 3)
+        ck = d + (rotation @ p.DC).T  # C_k, (2, 3)
         k = self._bar_lat
-        Bij = c[k] + np.einsum("nab,nb->na", lat[k], self._b_local)
-        u = np.repeat(p.U.T, 2, axis=0)  # (8, 3), per bar
-        a = np.repeat(p.forearm_dirs.T, 2, axis=0)
+        Bij = ck[k] + np.einsum("nab,nb->na", lat[k], self._b_local)
+        u, a = self._u_bar, self._a_bar
         qb = np.repeat(q_act, 2)
         w = Bij - Aij.reshape(8, 3)
-        w = w / np.linalg.norm(w, axis=1, keepdims=True)
+        w = w / np.sqrt(np.sum(w * w, axis=1, keepdims=True))
         # Bar direction in the forearm frame: Rot(u, -q) w (Rodrigues).
         c, s = np.cos(qb)[:, None], np.sin(qb)[:, None]
         uw = np.sum(u * w, axis=1, keepdims=True)
@@ -228,7 +230,7 @@ class H4:
         # bar = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
         beta = np.arcsin(np.clip(np.sum(bar * u, axis=1), -1.0, 1.0))
         alpha = np.arctan2(-np.sum(bar * a, axis=1), -bar[:, 2])
-        q = pin.neutral(self.model)
+        q = self._q_neutral.copy()
         q[self._q_act] = q_act
         q[self._q_u[:, 0]] = alpha
         q[self._q_u[:, 1]] = beta
