@@ -118,7 +118,7 @@ class Scene:
         vis["/Axes"].set_property("visible", False)
         # The camera orbits the scene origin: lift the drawing so the robot's middle sits there.
         self.vis.set_transform(mt.translation_matrix([0.0, 0.0, 0.33]))
-        self.look_at(np.array([0.62, -0.5, 0.16]))
+        self.look_at(np.array([0.3, -0.78, 0.12]))
 
     @property
     def url(self) -> str:
