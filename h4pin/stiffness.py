@@ -137,24 +137,32 @@ def m3_closed_form(pts: Points, params: H4Params) -> np.ndarray:
     return out
 
 
-def m4(pts: Points) -> np.ndarray:
-    """M4 = [spar(N); 0] of eq. 23, (..., 32, 8).
+def n_matrix(pts: Points) -> np.ndarray:
+    """N of eq. 23, one 6x2 block per leg, (..., 4, 6, 2).
 
     The printed N is garbled. Per leg, the reading that makes eqs. 22 and 23 agree in sign
-    (H4-NOTES) is ``N_i = [p_i1 x r_i; p_i2 x r_i] [(p_i1 x r_i).w_i, (p_i2 x r_i).w_i]`` (6x2), with
-    p_ij = P_i - A_ij, r_i the unit vector A_i -> P_i and w_i the unit vector A_i -> B_i.
+    (H4-NOTES) is ``N_i = [p_i1 x r_i; p_i2 x r_i] [(p_i1 x r_i).w_i, (p_i2 x r_i).w_i]``, with
+    p_ij = P_i - A_ij, r_i the unit vector A_i -> P_i and w_i the unit vector A_i -> B_i. A twist
+    of forearm i under bar forces f_i1, f_i2 moves A_i1, A_i2 by ``(r / (G I0)) N_i [f_i1, f_i2]``.
     """
     shape = pts.Aij.shape[:-3]
-    p = (pts.P[:, None, :] - pts.Aij).reshape(*shape, 8, 3)
+    p = pts.P[:, None, :] - pts.Aij  # (..., 4, 2, 3)
     r = pts.P - pts.A
     r = r / np.linalg.norm(r, axis=-1, keepdims=True)
     wl = pts.B - pts.A
     wl = wl / np.linalg.norm(wl, axis=-1, keepdims=True)
-    pr = geometry.cross(p, _per_bar_leg(r))  # (..., 8, 3)
-    c = np.einsum("...na,...na->...n", pr, _per_bar_leg(wl))  # (..., 8)
-    same_leg = np.equal.outer(np.arange(8) // 2, np.arange(8) // 2)  # (bar n, column n')
-    spar_n = pr[..., :, :, None] * (c[..., None, None, :] * same_leg[:, None, :])  # (..., 8, 3, 8)
-    return np.concatenate([spar_n.reshape(*shape, 24, 8), np.zeros((*shape, 8, 8))], axis=-2)
+    pr = geometry.cross(p, r[..., None, :])  # (..., 4, 2, 3): p_ij x r_i
+    c = np.einsum("...ija,...ia->...ij", pr, wl)  # (..., 4, 2): (p_ij x r_i) . w_i
+    return (pr.reshape(*shape, 4, 6)[..., :, None] * c[..., None, :])
+
+
+def m4(pts: Points) -> np.ndarray:
+    """M4 = [spar(N); 0] of eq. 23, (..., 32, 8), with N from :func:`n_matrix`."""
+    n = n_matrix(pts)
+    out = np.zeros((*n.shape[:-3], 32, 8))
+    for i in range(4):
+        out[..., 6 * i:6 * i + 6, 2 * i:2 * i + 2] = n[..., i, :, :]
+    return out
 
 
 def jb_from_m1(m1: np.ndarray, l: np.ndarray) -> np.ndarray:

@@ -189,3 +189,25 @@ def test_bad_options(proto, centre):
         compliance(proto, centre, model="exact")
     with pytest.raises(ValueError, match="on_error"):
         compliance(proto, centre, on_error="ignore")
+
+
+def test_n_matrix_moves_the_anchors_like_a_forearm_twist(proto, poses):
+    """Eq. 22-23: (r/(G I0)) N_i [f_i1, f_i2] is the move of A_i1, A_i2 when forearm i twists
+    under the bar forces (statics route), here against the twisted geometry of h4pin.deformed."""
+    from h4pin.geometry import points
+    from h4pin.stiffness import n_matrix
+
+    x = poses[5]
+    gamma = np.array([3.0, -1.0, -8.0, 0.2, -0.1, 0.3, 0.05, -0.02])
+    c = proto.params.compliances()["torsion"]
+    forces = statics.bar_forces(proto.params, x) @ gamma
+    twist = c * statics.spring_loads(proto.params, x)["torsion"] @ gamma  # rad, per forearm
+    n = n_matrix(points(proto.params, x, proto.inverse_geometry(x)))
+    robot = deformed.DeformedH4(proto.params, x)
+    for i in range(4):
+        eps = np.zeros(16)
+        eps[4 + i] = twist[i]
+        moved = (robot.anchors(eps)[0] - robot.anchors(-eps)[0])[2 * i:2 * i + 2].reshape(6) / 2
+        predicted = c * n[i] @ forces[2 * i:2 * i + 2]
+        assert np.max(np.abs(predicted - moved)) < 1e-7 * np.max(np.abs(moved))  # O(twist^2) truncation
+        assert np.max(np.abs(moved)) > 0
