@@ -4,19 +4,32 @@
 from h4pin.errors import (
     ConvergenceError,
     H4Error,
+    InterferenceError,
+    JointLimitError,
     MalformedURDFError,
     ParameterError,
     PoseError,
     SingularPoseError,
     UnreachablePoseError,
+    URDFNotFoundError,
 )
-from h4pin.params import VARIANTS, H4Params, symmetric_params
-from h4pin.robot import H4, load
+from h4pin.model import H4Geometry
+from h4pin.params import VARIANTS, H4Params, symmetric_params, toleranced_params
+from h4pin.robot import H4, Kinematics, load
+from h4pin.stiffness import Compliance, compliance
 
 __version__ = "0.1.0"
 
 __all__ = [
     "H4",
+    "Compliance",
+    "H4Geometry",
+    "InterferenceError",
+    "JointLimitError",
+    "Kinematics",
+    "URDFNotFoundError",
+    "compliance",
+    "toleranced_params",
     "VARIANTS",
     "ConvergenceError",
     "H4Error",

@@ -13,18 +13,19 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import geometry
+from h4pin.errors import SingularPoseError
+from h4pin.geometry import PlateState
 from h4pin.robot import H4
-from h4pin.stiffness import R_CONSISTENT, R_PAPER, matrices, terms_from_matrices
-
-
-def as_load(load: np.ndarray | list | tuple) -> np.ndarray:
-    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
-    g = np.asarray(load, dtype=float)
-    if g.shape == (3,):
-        g = np.r_[g, np.zeros(5)]
-    if g.shape != (8,) or not np.all(np.isfinite(g)):
-        raise ValueError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), got {load!r}")
-    return g
+from h4pin.stiffness import (
+    R_CONSISTENT,
+    R_PAPER,
+    SINGULAR_COND,
+    _check_options,
+    as_load,
+    condition_number,
+    eq30_terms,
+    matrices_at,
+)
 
 
 def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consistent") -> tuple[np.ndarray, np.ndarray]:
@@ -32,14 +33,23 @@ def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consist
 
     ``dq`` is the rotation of each forearm tip about its actuator axis from control stiffness and
     bending, ``(1/kc + r/(3EI)) Gamma_act`` with ``Gamma_act = J^T R Gamma_ext`` (eqs. 10, 15).
+
+    Raises:
+        h4pin.ParameterError: a load that is not a finite F (3,) or Gamma_ext (8,).
+        UnreachablePoseError, SingularPoseError: as :func:`h4pin.compliance`.
     """
-    x = geometry.as_poses(pose)
+    _check_options(model, "raise", "auto")
+    x = geometry.as_pose(pose)
     g = as_load(load)
-    mats = matrices(h4, x)
-    dtp = sum(terms_from_matrices(mats, h4.params, model).values()) @ g
+    mats = matrices_at(h4, x)
+    inv, cond = condition_number(mats)
+    if not cond < SINGULAR_COND:
+        raise SingularPoseError(f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a "
+                                "motion that no spring resists")
+    comp = h4.geometry.compliances()
+    dtp = sum(eq30_terms(inv, mats, comp, model).values()) @ g
     r = R_PAPER if model == "paper" else R_CONSISTENT
-    c = h4.params.compliances()
-    dq = (c["control"] + c["bending"]) * (mats.J.T @ r @ g)
+    dq = (comp["control"] + comp["bending"]) * (mats.J.T @ r @ g)
     return dtp, dq
 
 
@@ -48,9 +58,8 @@ def deflected_configuration(h4: H4, pose: np.ndarray, load: np.ndarray, *, scale
     """Pinocchio configuration (nq,) of the robot deflected by ``scale`` times the linear
     deflection under ``load`` (force F (3,) in N, or Gamma_ext (8,)). ``scale`` exaggerates the
     (micrometre) deflection so that it can be seen; 1 is the true size."""
-    x = geometry.as_poses(pose)
+    x = geometry.as_pose(pose)
     dtp, dq = deflection(h4, x, load, model)
     dtp, dq = scale * dtp, scale * dq
-    rotation = pin.exp3(dtp[3:6]) @ geometry.rot_z(x[3])
-    omega = -x[3] + dtp[6:8]
-    return h4.assemble(h4.inverse_geometry(x) + dq, x[:3] + dtp[:3], rotation, omega)
+    st = h4.state(x)
+    return h4.assemble(PlateState(st.q + dq, st.D + dtp[:3], pin.exp3(dtp[3:6]) @ st.R, st.omega + dtp[6:8]))

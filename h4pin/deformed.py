@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from h4pin import geometry
 from h4pin.errors import ConvergenceError
-from h4pin.params import LEG_LATERAL, H4Params
+from h4pin.model import H4Geometry
 
 #: Kinds of spring deformation and how many of each.
 KINDS = {"rotation": 4, "torsion": 4, "tension": 8}
@@ -40,43 +40,37 @@ class DeformedH4:
     """An H4 at a rigid pose whose springs can be deformed; solves the plate non-linearly.
 
     Args:
-        params: Robot parameters.
-        pose: The rigid reference pose [x, y, z, theta] (m, rad).
+        g: The robot's geometry (:attr:`h4pin.H4.geometry`).
+        pose: The reference pose [x, y, z, theta] (m, rad), assembled by the inverse geometry.
     """
 
-    def __init__(self, params: H4Params, pose: np.ndarray):
-        self.params = params
-        self.pose = geometry.as_poses(pose).copy()
-        self.q = geometry.inverse_geometry(params, self.pose)
-        self.pts = geometry.points(params, self.pose, self.q)
-        self._b_local = (params.plate_ball_centres() - params.DC.T[LEG_LATERAL][:, None, :]).reshape(8, 3)
-        self._lat = np.repeat(LEG_LATERAL, 2)
+    def __init__(self, g: H4Geometry, pose: np.ndarray):
+        self.g = g
+        self.pose = geometry.as_pose(pose).copy()
+        sol = geometry.solve(g, self.pose, check=False)
+        geometry.raise_for_status(sol.status, sol.detail, batch=False)
+        self.state = sol.state
+        self.q = sol.state.q
+        self.pts = geometry.points(g, sol.state)
 
     def plate_points(self, tp: np.ndarray) -> np.ndarray:
         """B_ij (8, 3) for plate coordinates tp = [dD, Omega, domega_1, domega_2] (finite)."""
-        theta = self.pose[3]
-        rc = pin.exp3(tp[3:6]) @ geometry.rot_z(theta)
-        d = self.pose[:3] + tp[:3]
-        out = np.empty((8, 3))
-        for k in range(2):
-            rk = rc @ geometry.rot_z(-theta + tp[6 + k])
-            ck = d + rc @ self.params.DC[:, k]
-            rows = self._lat == k
-            out[rows] = ck + self._b_local[rows] @ rk.T
-        return out
+        st = self.state
+        _, bij, _ = geometry.plate_points(self.g, st.D + tp[:3], pin.exp3(tp[3:6]) @ st.R, st.omega + tp[6:8])
+        return bij
 
     def anchors(self, eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A_ij (8, 3) and l_ij (8,) for spring deformations eps = [rotation (4), torsion (4),
         tension (8)] (rad, rad, m)."""
-        p, pts = self.params, self.pts
+        g, pts = self.g, self.pts
         aij = pts.Aij.copy()
         for i in range(4):
-            aij[i] = _rotate(aij[i], pts.P[i], p.U[:, i], eps[i])
+            aij[i] = _rotate(aij[i], pts.P[i], g.u[i], eps[i])
             e = (pts.A[i] - pts.P[i]) / np.linalg.norm(pts.A[i] - pts.P[i])
-            centre = _rotate(pts.A[i], pts.P[i], p.U[:, i], eps[i])
-            axis = pin.exp3(eps[i] * p.U[:, i]) @ e
+            centre = _rotate(pts.A[i], pts.P[i], g.u[i], eps[i])
+            axis = pin.exp3(eps[i] * g.u[i]) @ e
             aij[i] = _rotate(aij[i], centre, axis, eps[4 + i])
-        return aij.reshape(8, 3), p.l + eps[8:]
+        return aij.reshape(8, 3), g.l + eps[8:]
 
     def solve_plate(self, eps: np.ndarray, guess: np.ndarray | None = None, tol: float = 1e-14,
                     max_iter: int = 30) -> np.ndarray:
@@ -115,25 +109,25 @@ class DeformedH4:
         return g
 
 
-def compliance_terms(params: H4Params, pose: np.ndarray, step: float = 1e-6) -> dict[str, np.ndarray]:
+def compliance_terms(g: H4Geometry, pose: np.ndarray, step: float = 1e-6) -> dict[str, np.ndarray]:
     """The four terms of K (8, 8 each) from finite-difference sensitivities and virtual work.
 
     The load of spring s under Gamma_ext is ``G_s^T Gamma_ext`` (virtual work), its deformation
     ``c_s`` times that, so term = ``c sum_s G_s G_s^T`` over the springs of the term. Equals the
     ``consistent`` model, and the ``paper`` model in its translational block.
     """
-    g = DeformedH4(params, pose).sensitivities(step)
-    c = params.compliances()
-    rot, tors, tens = g[:, :4], g[:, 4:8], g[:, 8:]
+    sens = DeformedH4(g, pose).sensitivities(step)
+    c = g.compliances()
+    rot, tors, tens = sens[:, :4], sens[:, 4:8], sens[:, 8:]
     return {
-        "control": c["control"] * rot @ rot.T,
-        "bending": c["bending"] * rot @ rot.T,
-        "torsion": c["torsion"] * tors @ tors.T,
-        "tension": c["tension"] * tens @ tens.T,
+        "control": (rot * c["control"]) @ rot.T,
+        "bending": (rot * c["bending"]) @ rot.T,
+        "torsion": (tors * c["torsion"]) @ tors.T,
+        "tension": (tens * c["tension"]) @ tens.T,
     }
 
 
-def loaded_equilibrium(params: H4Params, pose: np.ndarray, force: np.ndarray, *, rtol: float = 1e-7,
+def loaded_equilibrium(g: H4Geometry, pose: np.ndarray, force: np.ndarray, *, rtol: float = 1e-7,
                        max_iter: int = 50, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
     """Non-linear static equilibrium under a force (3,) N at D: returns (dD (3,) m, eps (16,)).
 
@@ -146,10 +140,10 @@ def loaded_equilibrium(params: H4Params, pose: np.ndarray, force: np.ndarray, *,
     Raises:
         ConvergenceError: no fixed point within ``max_iter`` iterations.
     """
-    robot = DeformedH4(params, pose)
+    robot = DeformedH4(g, pose)
     force = np.asarray(force, dtype=float)
-    c = params.compliances()
-    comp = np.r_[np.full(4, c["control"] + c["bending"]), np.full(4, c["torsion"]), np.full(8, c["tension"])]
+    c = g.compliances()
+    comp = np.r_[c["control"] + c["bending"], c["torsion"], c["tension"]]
     eps = np.zeros(16)
     for _ in range(max_iter):
         tp0 = robot.solve_plate(eps)

@@ -33,7 +33,8 @@ class PoseError(H4Error, ValueError):
 
 
 class UnreachablePoseError(PoseError):
-    """A leg cannot reach its plate point: the closure has no real solution."""
+    """The robot cannot take this pose: a leg cannot reach its plate point (the closure has no
+    real solution), or (subclasses) a joint limit or an interference forbids it."""
 
 
 class SingularPoseError(PoseError):
@@ -42,3 +43,15 @@ class SingularPoseError(PoseError):
 
 class ConvergenceError(H4Error, RuntimeError):
     """An iterative solve (forward geometry, loaded equilibrium) did not converge."""
+
+
+class JointLimitError(UnreachablePoseError):
+    """The pose needs an actuator or a lateral bar beyond its URDF joint limits."""
+
+
+class InterferenceError(UnreachablePoseError):
+    """At this pose two bars of different legs would pass through each other."""
+
+
+class URDFNotFoundError(H4Error, FileNotFoundError):
+    """No URDF file at the given path."""

@@ -1,12 +1,16 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Closed-form geometry of the H4 at rigid poses: points, inverse/forward geometry, eq. 8.
+"""Closed-loop geometry of an H4 from its per-leg and per-bar constants (:class:`H4Geometry`).
 
-Pure numpy, vectorised over any leading batch shape. This is the fast path used for batches
-and the independent reference against which the Pinocchio route (:class:`h4pin.H4`) is tested.
+Pure numpy, vectorised over any leading batch shape. This is the fast path for batches and the
+reference against which the Pinocchio route (:class:`h4pin.H4`) is tested.
 
 A pose is ``x = [x, y, z, theta]`` (m, rad): the position of D and the rotation of the central
-bar about z. At a rigid pose the lateral bars only translate, so
-``B_i = D + Rz(theta) DC_k + (DB_i - DC_k)`` with k the lateral bar of leg i.
+bar about z. The plate's full state is :class:`PlateState`: D, the central bar's orientation R
+and the relative angles omega_k of the lateral bars (about their axes v_k). For a robot whose
+parallelograms are true parallelograms (``g.ideal``) the pose fixes the state in closed form
+(R = Rz(theta), omega_k = -theta: the lateral bars only translate). A toleranced robot (unequal
+bars, offsets that do not match) tilts its plate slightly: the state is then solved by Newton's
+method on the eight bar closures, started from the closed form.
 """
 
 from __future__ import annotations
@@ -15,23 +19,44 @@ from typing import NamedTuple
 
 import numpy as np
 
-from h4pin.errors import ConvergenceError, PoseError, SingularPoseError, UnreachablePoseError
-from h4pin.params import LEG_LATERAL, H4Params
+from h4pin.errors import (
+    ConvergenceError,
+    InterferenceError,
+    JointLimitError,
+    PoseError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
+from h4pin.model import H4Geometry
 
 _Z = np.array([0.0, 0.0, 1.0])
-_SIGNS = np.array([1.0, -1.0])  # j = 1 is +h u_i, j = 2 is -h u_i
+
+#: Verdict codes of a pose (shared by every path; :data:`STATUS_NAMES`).
+OK, UNREACHABLE, LIMITS, INTERFERENCE, SINGULAR = 0, 1, 2, 3, 4
+STATUS_NAMES = {OK: "ok", UNREACHABLE: "unreachable", LIMITS: "outside joint limits",
+                INTERFERENCE: "bars interpenetrate", SINGULAR: "singular"}
 
 
 class Points(NamedTuple):
-    """Characteristic points of a rigid pose, in m, world frame; ``...`` is the batch shape."""
+    """Characteristic points of an assembled H4, in m, world frame; ``...`` is the batch shape."""
 
     D: np.ndarray  #: (..., 3)
     C: np.ndarray  #: (..., 2, 3) revolute joint centres C_k
-    B: np.ndarray  #: (..., 4, 3) B_i
+    B: np.ndarray  #: (..., 4, 3) B_i, middle of B_i1, B_i2
     Bij: np.ndarray  #: (..., 4, 2, 3) plate-side ball joints
     P: np.ndarray  #: (4, 3) actuator axis points
-    A: np.ndarray  #: (..., 4, 3) forearm ends A_i
+    A: np.ndarray  #: (..., 4, 3) forearm ends A_i, middle of A_i1, A_i2
     Aij: np.ndarray  #: (..., 4, 2, 3) forearm-side ball joints
+    v: np.ndarray  #: (..., 2, 3) world axes of the lateral revolutes
+
+
+class PlateState(NamedTuple):
+    """Assembled state: actuator angles and plate placement (``...`` is the batch shape)."""
+
+    q: np.ndarray  #: (..., 4) rad
+    D: np.ndarray  #: (..., 3) m
+    R: np.ndarray  #: (..., 3, 3) orientation of the central bar (w.r.t. its reference)
+    omega: np.ndarray  #: (..., 2) rad, relative angles of the lateral bars about v_k
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -43,18 +68,26 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
 
 
-def as_poses(pose: np.ndarray | list | tuple) -> np.ndarray:
+def as_poses(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
     """Check and convert a pose (4,) or a batch (N, 4) to float64; clear error otherwise."""
     try:
         x = np.asarray(pose, dtype=float)
     except (TypeError, ValueError):
-        raise PoseError(f"a pose must be numbers [x, y, z, theta], got {pose!r}") from None
+        raise PoseError(f"{name} must be numbers [x, y, z, theta], got {pose!r}") from None
     if x.ndim not in (1, 2) or x.shape[-1] != 4:
-        raise PoseError(f"a pose must have shape (4,) or (N, 4) as [x, y, z, theta], got shape {x.shape}")
+        raise PoseError(f"{name} must have shape (4,) or (N, 4) as [x, y, z, theta], got shape {x.shape}")
     bad = ~np.all(np.isfinite(x), axis=-1)
     if np.any(bad):
         index = int(np.argmax(bad)) if x.ndim == 2 else None
-        raise PoseError(f"pose has non-finite entries: {x[index] if index is not None else x}", index)
+        raise PoseError(f"{name} has non-finite entries: {x[index] if index is not None else x}", index)
+    return x
+
+
+def as_pose(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
+    """One pose (4,) as float64; a batch or a wrong shape is a :class:`PoseError` naming ``name``."""
+    x = as_poses(pose, name)
+    if x.ndim != 1:
+        raise PoseError(f"{name} must be one pose of shape (4,), got shape {x.shape}")
     return x
 
 
@@ -70,165 +103,338 @@ def rot_z(theta: np.ndarray) -> np.ndarray:
     return out
 
 
-def plate_points(params: H4Params, pose: np.ndarray) -> tuple[np.ndarray, ...]:
-    """D, C_k, B_i, B_ij of a rigid pose: shapes (..., 3), (..., 2, 3), (..., 4, 3), (..., 4, 2, 3)."""
-    D = pose[..., :3]
-    rot = rot_z(pose[..., 3])
-    C = D[..., None, :] + np.swapaxes(rot @ params.DC, -1, -2)
-    B = C[..., LEG_LATERAL, :] + (params.DB - params.DC[:, LEG_LATERAL]).T
-    Bij = B[..., :, None, :] + _SIGNS[:, None] * params.half_width * params.U.T[:, None, :]
-    return D, C, B, Bij
+def rotate(x: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rodrigues: ``x`` (..., 3) turned by ``angle`` (...) about the unit ``axis`` (..., 3)."""
+    c, s = np.cos(angle)[..., None], np.sin(angle)[..., None]
+    return x * c + cross(axis, x) * s + axis * np.sum(axis * x, axis=-1, keepdims=True) * (1.0 - c)
 
 
-def forearm_points(params: H4Params, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A_i (..., 4, 3) and A_ij (..., 4, 2, 3) for actuator angles q (..., 4), in m."""
-    a = params.forearm_dirs.T  # (4, 3)
-    A = params.P.T + params.r * (np.cos(q)[..., None] * a - np.sin(q)[..., None] * _Z)
-    Aij = A[..., :, None, :] + _SIGNS[:, None] * params.half_width * params.U.T[:, None, :]
-    return A, Aij
+def exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors ``w`` (..., 3)."""
+    angle = np.linalg.norm(w, axis=-1)
+    safe = np.where(angle > 0, angle, 1.0)
+    k = w / safe[..., None]
+    kx = np.zeros((*w.shape[:-1], 3, 3))
+    kx[..., 0, 1], kx[..., 0, 2], kx[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
+    kx = kx - np.swapaxes(kx, -1, -2)
+    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
 
 
-def points(params: H4Params, pose: np.ndarray, q: np.ndarray) -> Points:
-    """All characteristic points of the rigid pose ``pose`` with actuator angles ``q``."""
-    D, C, B, Bij = plate_points(params, pose)
-    A, Aij = forearm_points(params, q)
-    return Points(D, C, B, Bij, params.P.T.copy(), A, Aij)
+def rigid_state(pose: np.ndarray, q: np.ndarray) -> PlateState:
+    """The state of a rigid pose: R = Rz(theta), omega_k = -theta (lateral bars translate)."""
+    theta = pose[..., 3]
+    return PlateState(q, pose[..., :3], rot_z(theta), np.stack([-theta, -theta], axis=-1))
 
 
-def inverse_geometry(params: H4Params, pose: np.ndarray, *, on_error: str = "raise") -> np.ndarray:
-    """Actuator angles q (rad) of a pose, elbow-out branch, closed form.
+def forearm_points(g: H4Geometry, q: np.ndarray) -> np.ndarray:
+    """A_ij (..., 8, 3) for actuator angles q (..., 4): A0_ij turned by q_i about axis i."""
+    qb = np.repeat(q, 2, axis=-1)
+    ub = np.repeat(g.u, 2, axis=0)
+    pb = np.repeat(g.P, 2, axis=0)
+    return pb + rotate(g.A0 - pb, ub, qb)
 
-    Leg i closes when ``|B_i - A_i(q_i)| = l``. With ``e = B_i - P_i`` this is
-    ``(e.a_i) cos q - (e.z) sin q = (|e|^2 + r^2 - l^2) / (2 r)``, solved for the branch with
-    ``u_i . ((A_i - P_i) x (B_i - A_i)) > 0`` (elbow out).
+
+def plate_points(g: H4Geometry, D: np.ndarray, R: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, ...]:
+    """C_k (..., 2, 3), B_ij (..., 8, 3) and the world lateral axes (..., 2, 3) of a plate state."""
+    C = D[..., None, :] + np.einsum("...ab,kb->...ka", R, g.C0)
+    lat_rot = np.einsum("...ab,...kbc->...kac", R, _axis_rotations(g.v, omega))  # (..., 2, 3, 3)
+    B = C[..., g.lat, :] + np.einsum("...nab,nb->...na", lat_rot[..., g.lat, :, :], g.b)
+    v = np.einsum("...ab,kb->...ka", R, g.v)
+    return C, B, v
+
+
+def _axis_rotations(v: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 2, 3, 3) by omega_k about the unit axes v_k (2, 3)."""
+    return exp_so3(v * omega[..., :, None])
+
+
+def points(g: H4Geometry, state: PlateState) -> Points:
+    """All characteristic points of an assembled state."""
+    C, Bij, v = plate_points(g, state.D, state.R, state.omega)
+    Aij = forearm_points(g, state.q)
+    shape = Aij.shape[:-2]
+    Bij, Aij = Bij.reshape(*shape, 4, 2, 3), Aij.reshape(*shape, 4, 2, 3)
+    return Points(state.D, C, Bij.mean(axis=-2), Bij, g.P, Aij.mean(axis=-2), Aij, v)
+
+
+def _closed_form(g: H4Geometry, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Elbow-out q (..., 4) of each leg's midpoints, and the ratio cos(q - phi) (..., 4)
+    (|ratio| > 1: the leg cannot reach) with the leg's e = B_i - P_i.
+
+    Leg i closes when ``|B_i - A_i(q)| = l_i``. With ``e = B_i - P_i`` and
+    ``A_i(q) - P_i = m_i cos q + (u_i x m_i) sin q`` (m_i = A_i(0) - P_i, normal to u_i):
+    ``(e.m) cos q + (e.(u x m)) sin q = (|e|^2 + r^2 - l^2) / 2``. Writing
+    ``alpha = e.m, beta = e.(u x m) = rho sin(phi), alpha = rho cos(phi)``: the elbow-out test
+    ``u.((A - P) x (B - A)) = beta cos q - alpha sin q = rho sin(phi - q) > 0`` picks
+    ``q = phi - acos(c / rho)``.
+    """
+    theta = pose[..., 3]
+    C = pose[..., None, :3] + np.einsum("...ab,kb->...ka", rot_z(theta), g.C0)
+    B = C[..., g.leg_lat, :] + g.b_leg
+    e = B - g.P
+    alpha = np.sum(e * g.m, axis=-1)
+    beta = np.sum(e * g.um, axis=-1)
+    c = 0.5 * (np.sum(e * e, axis=-1) + g.r**2 - g.l_leg**2)
+    rho = np.hypot(alpha, beta)
+    ratio = np.divide(c, rho, out=np.full_like(c, np.inf), where=rho > 0)
+    q = np.arctan2(beta, alpha) - np.arccos(np.clip(ratio, -1.0, 1.0))
+    return (q + np.pi) % (2 * np.pi) - np.pi, ratio, e
+
+
+def _bar_jacobians(g: H4Geometry, pts: Points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """w_ij (..., 8, 3) and the derivatives of (|B - A|^2 - l^2)/2 w.r.t. the plate
+    coordinates [dD, dOmega, domega_1, domega_2] (..., 8, 8, i.e. M1 of eq. 6) and the
+    actuator angles (..., 8, 4)."""
+    shape = pts.Aij.shape[:-3]
+    bij, aij = pts.Bij.reshape(*shape, 8, 3), pts.Aij.reshape(*shape, 8, 3)
+    w = bij - aij
+    m1 = np.zeros((*shape, 8, 8))
+    m1[..., :3] = w
+    m1[..., 3:6] = cross(bij - pts.D[..., None, :], w)
+    lever = cross(pts.v[..., g.lat, :], bij - pts.C[..., g.lat, :])
+    m1[..., np.arange(8), 6 + g.lat] = np.sum(w * lever, axis=-1)
+    dq = np.zeros((*shape, 8, 4))
+    arm = cross(np.repeat(g.u, 2, axis=0), aij - np.repeat(g.P, 2, axis=0))
+    dq[..., np.arange(8), np.arange(8) // 2] = -np.sum(w * arm, axis=-1)
+    return w, m1, dq
+
+
+def _newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, tol: float = 1e-13,
+            max_iter: int = 30) -> tuple[PlateState, np.ndarray]:
+    """Solve the eight closures ``(|B_ij - A_ij|^2 - l_ij^2) / 2 = 0`` by Newton's method.
+
+    ``free_q``: unknowns are q, the tilt of the central bar and the lateral angles (inverse
+    geometry: D and theta fixed); otherwise D, theta, tilt and the lateral angles (forward
+    geometry: q fixed). Returns the state and a converged flag per pose.
+    """
+    q, D, theta = state.q.copy(), state.D.copy(), pose[..., 3].copy()
+    tilt = np.zeros((*theta.shape, 3))
+    psi = state.omega + theta[..., None]
+    done = np.zeros(theta.shape, dtype=bool)
+    for _ in range(max_iter):
+        R = exp_so3(tilt) @ rot_z(theta)
+        st = PlateState(q, D, R, psi - theta[..., None])
+        pts = points(g, st)
+        w, m1, dq = _bar_jacobians(g, pts)
+        res = 0.5 * (np.sum(w * w, axis=-1) - g.l**2)
+        done = np.max(np.abs(res), axis=-1) < tol * float(np.max(g.l))
+        if np.all(done):
+            return st, done
+        if free_q:  # columns: q (4), tilt x, y, lateral 1, 2
+            jac = np.concatenate([dq, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+        else:  # columns: D (3), theta (rotation about z with the lateral bars kept), tilt x, y, lateral 1, 2
+            dtheta = m1[..., 5:6] - m1[..., 6:7] * (g.lat == 0)[:, None] - m1[..., 7:8] * (g.lat == 1)[:, None]
+            jac = np.concatenate([m1[..., :3], dtheta, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+        with np.errstate(all="ignore"):
+            try:
+                step = np.linalg.solve(jac, -res[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = np.full(res.shape, np.nan)
+        step = np.where(done[..., None], 0.0, step)
+        if free_q:
+            q = q + step[..., :4]
+        else:
+            D = D + step[..., :3]
+            theta = theta + step[..., 3]
+        tilt[..., :2] += step[..., 4:6]
+        psi = psi + step[..., 6:8]
+        if not np.all(np.isfinite(step)):
+            break
+    R = exp_so3(tilt) @ rot_z(theta)
+    st = PlateState(q, D, R, psi - theta[..., None])
+    pts = points(g, st)
+    w = (pts.Bij - pts.Aij).reshape(*theta.shape, 8, 3)
+    res = 0.5 * (np.sum(w * w, axis=-1) - g.l**2)
+    return st, np.max(np.abs(res), axis=-1) < tol * float(np.max(g.l))
+
+
+def segment_distances(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
+    """Shortest distances between segments a0-a1 and b0-b1 (..., 3) -> (...)."""
+    d1, d2, r = a1 - a0, b1 - b0, a0 - b0
+    a, e, f = np.sum(d1 * d1, -1), np.sum(d2 * d2, -1), np.sum(d2 * r, -1)
+    c, b = np.sum(d1 * r, -1), np.sum(d1 * d2, -1)
+    denom = a * e - b * b
+    with np.errstate(all="ignore"):
+        s = np.where(denom > 1e-18 * a * e, np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
+        t = (b * s + f) / e
+        t_c = np.clip(t, 0.0, 1.0)
+        s = np.where(t != t_c, np.clip((b * t_c - c) / a, 0.0, 1.0), s)
+    return np.linalg.norm(a0 + s[..., None] * d1 - b0 - t_c[..., None] * d2, axis=-1)
+
+
+#: Pairs of bars of different legs (24 of the 28 pairs), checked for interference.
+_PAIRS = np.array([(m, n) for m in range(8) for n in range(m + 1, 8) if m // 2 != n // 2])
+
+
+class Solution(NamedTuple):
+    """Inverse geometry of a batch of poses: the states, a verdict per pose and its reason."""
+
+    state: PlateState
+    status: np.ndarray  #: (...,) int8, :data:`STATUS_NAMES`
+    detail: list[str | None]  #: a message per pose (None when ok)
+
+
+def solve(g: H4Geometry, pose: np.ndarray, *, check: bool = True) -> Solution:
+    """Inverse geometry with a verdict per pose: unreachable, outside the joint limits, bars
+    interpenetrating (``check``), or ok (status 0). Never raises on a bad pose."""
+    x = as_poses(pose)
+    single = x.ndim == 1
+    xb = x[None] if single else x
+    n = len(xb)
+    q, ratio, e = _closed_form(g, xb)
+    status = np.zeros(n, dtype=np.int8)
+    detail: list[str | None] = [None] * n
+    reach = np.abs(ratio) <= 1.0
+    for k in np.flatnonzero(~reach.all(axis=1)):
+        leg = int(np.argmax(~reach[k]))
+        status[k] = UNREACHABLE
+        detail[k] = _unreachable_message(g, e[k, leg], leg)
+    state = rigid_state(xb, q)
+    if not g.ideal:
+        state, converged = _newton(g, xb, state, free_q=True)
+        q = state.q
+        for k in np.flatnonzero(~converged & (status == OK)):
+            status[k] = UNREACHABLE
+            detail[k] = "the closures of the toleranced robot have no solution near the nominal assembly"
+    if check:
+        ok = status == OK
+        lo, hi = q < g.q_lo, q > g.q_hi
+        omega = state.omega
+        olo, ohi = omega < g.omega_lo, omega > g.omega_hi
+        for k in np.flatnonzero(ok & (lo | hi).any(axis=1)):
+            i = int(np.argmax((lo | hi)[k]))
+            status[k] = LIMITS
+            detail[k] = (f"actuator {i + 1} would be at {q[k, i]:.3f} rad, outside its joint limits "
+                         f"[{g.q_lo[i]:.3f}, {g.q_hi[i]:.3f}] rad")
+        ok = status == OK
+        for k in np.flatnonzero(ok & (olo | ohi).any(axis=1)):
+            j = int(np.argmax((olo | ohi)[k]))
+            status[k] = LIMITS
+            detail[k] = (f"lateral bar {j + 1} would turn by {omega[k, j]:.3f} rad on its revolute joint, outside "
+                         f"its limits [{g.omega_lo[j]:.3f}, {g.omega_hi[j]:.3f}] rad (theta = {xb[k, 3]:.3f} rad)")
+        ok = np.flatnonzero(status == OK)
+        if ok.size:
+            pts = points(g, PlateState(*(np.asarray(a)[ok] for a in state)))
+            bij, aij = pts.Bij.reshape(-1, 8, 3), pts.Aij.reshape(-1, 8, 3)
+            dist = segment_distances(aij[:, _PAIRS[:, 0]], bij[:, _PAIRS[:, 0]], aij[:, _PAIRS[:, 1]],
+                                     bij[:, _PAIRS[:, 1]])
+            for row in np.flatnonzero(dist.min(axis=1) < g.bar_clearance):
+                pair = _PAIRS[int(np.argmin(dist[row]))]
+                k = ok[row]
+                status[k] = INTERFERENCE
+                detail[k] = (f"bars {pair[0] // 2 + 1}{pair[0] % 2 + 1} and {pair[1] // 2 + 1}{pair[1] % 2 + 1} "
+                             f"interpenetrate (axes {dist[row].min() * 1e3:.1f} mm apart, clearance "
+                             f"{g.bar_clearance * 1e3:.1f} mm)")
+    if single:
+        return Solution(PlateState(*(a[0] for a in state)), status[0], detail[:1])
+    return Solution(state, status, detail)
+
+
+def _unreachable_message(g: H4Geometry, e: np.ndarray, leg: int) -> str:
+    # |B - A(q)|^2 = |e|^2 + r^2 - 2 (alpha cos q + beta sin q) spans |e|^2 + r^2 -+ 2 rho.
+    rho = np.hypot(e @ g.m[leg], e @ g.um[leg])
+    e2, r = float(e @ e), float(g.r[leg])
+    lo, hi = (np.sqrt(max(e2 + r * r + s * 2 * rho, 0.0)) for s in (-1, 1))
+    return (f"leg {leg + 1} cannot reach B_{leg + 1}: over all actuator angles |B_{leg + 1} - A_{leg + 1}| spans "
+            f"{lo * 1e3:.1f} to {hi * 1e3:.1f} mm, the bars are {g.l_leg[leg] * 1e3:.1f} mm long")
+
+
+_ERRORS = {UNREACHABLE: UnreachablePoseError, LIMITS: JointLimitError, INTERFERENCE: InterferenceError,
+           SINGULAR: SingularPoseError}
+
+
+def raise_for_status(status: np.ndarray, detail: list[str | None], batch: bool) -> None:
+    """Raise the typed error of the first pose whose status is not ok (its index for a batch)."""
+    flat = np.atleast_1d(status)
+    bad = np.flatnonzero(flat != OK)
+    if bad.size:
+        k = int(bad[0])
+        raise _ERRORS[int(flat[k])](detail[k] or STATUS_NAMES[int(flat[k])], k if batch else None)
+
+
+def inverse_geometry(g: H4Geometry, pose: np.ndarray, *, on_error: str = "raise", check: bool = True) -> np.ndarray:
+    """Actuator angles q (rad) of a pose, elbow-out branch; (4,) -> (4,), (N, 4) -> (N, 4).
+
+    Closed form for ideal parallelograms, Newton otherwise (:func:`solve`).
 
     Args:
-        params: Robot parameters.
+        g: The robot's geometry.
         pose: (4,) or (N, 4) poses [x, y, z, theta] (m, rad).
-        on_error: ``"raise"`` raises :class:`UnreachablePoseError` naming the leg (and the first
-            bad index of a batch); ``"nan"`` returns NaN rows for unreachable poses instead.
-
-    Returns:
-        q of shape (4,) or (N, 4), in rad.
+        on_error: ``"raise"`` raises the typed error of the first bad pose (its index for a
+            batch); ``"nan"`` returns NaN rows for bad poses instead.
+        check: Also refuse poses outside the joint limits or with interpenetrating bars.
     """
-    x = as_poses(pose)
-    _, _, B, _ = plate_points(params, x)
-    e = B - params.P.T
-    a = params.forearm_dirs.T
-    ea = np.einsum("...ia,ia->...i", e, a)
-    ez = e[..., 2]
-    c = (np.einsum("...ia,...ia->...i", e, e) + params.r**2 - params.l**2) / (2.0 * params.r)
-    rho = np.hypot(ea, ez)
-    ratio = np.divide(c, rho, out=np.full_like(c, np.inf), where=rho > 0)
-    bad = np.abs(ratio) > 1.0
-    if np.any(bad) and on_error == "raise":
-        flat = bad.reshape(-1, 4)
-        n, leg = np.argwhere(flat)[0]
-        # |B - A(q)|^2 = |e|^2 + r^2 - 2 r (e.a cos q - e.z sin q) spans |e|^2 + r^2 -+ 2 r rho.
-        e2 = float(np.sum(e.reshape(-1, 4, 3)[n, leg] ** 2))
-        rh = float(rho.reshape(-1, 4)[n, leg])
-        lo, hi = (np.sqrt(max(e2 + params.r**2 + s * 2 * params.r * rh, 0.0)) for s in (-1, 1))
-        raise UnreachablePoseError(
-            f"leg {leg + 1} cannot reach B_{leg + 1}: over all actuator angles |B_{leg + 1} - A_{leg + 1}| "
-            f"spans {lo * 1e3:.1f} to {hi * 1e3:.1f} mm, the bars are {params.l * 1e3:.1f} mm long",
-            int(n) if x.ndim == 2 else None,
-        )
-    # A cos q + Bc sin q = c with A = e.a, Bc = -e.z: q = phi +- delta, phi = atan2(Bc, A).
-    # Elbow out: u.((A - P) x (B - A)) = u.((A - P) x e) = -r (e.z cos q + e.a sin q)
-    # = -r rho sin(q - phi), positive for q = phi - delta (delta = acos(c / rho) in [0, pi]).
-    phi = np.arctan2(-ez, ea)
-    q = phi - np.arccos(np.clip(ratio, -1.0, 1.0))
-    q = (q + np.pi) % (2 * np.pi) - np.pi
-    if on_error == "nan":
-        q = np.where(bad.any(axis=-1, keepdims=True), np.nan, q)
-    elif on_error != "raise":
-        raise ValueError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
-    return q
+    if on_error not in ("raise", "nan"):
+        raise PoseError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
+    sol = solve(g, pose, check=check)
+    if on_error == "raise":
+        raise_for_status(sol.status, sol.detail, np.ndim(sol.status) == 1)
+    bad = np.asarray(sol.status) != OK
+    return np.where(bad[..., None], np.nan, sol.state.q)
 
 
-def closure_residual(params: H4Params, pose: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``(|B_i - A_i|^2 - l^2) / 2`` per leg, shape (..., 4), in m^2 (zero when closed)."""
-    _, _, B, _ = plate_points(params, pose)
-    A, _ = forearm_points(params, q)
-    w = B - A
-    return 0.5 * (np.einsum("...ia,...ia->...i", w, w) - params.l**2)
+def closure_residual(g: H4Geometry, state: PlateState) -> np.ndarray:
+    """``(|B_ij - A_ij|^2 - l_ij^2) / 2`` per bar, shape (..., 8), in m^2 (zero when closed)."""
+    pts = points(g, state)
+    w = pts.Bij - pts.Aij
+    return 0.5 * (np.sum(w * w, axis=-1).reshape(*w.shape[:-3], 8) - g.l**2)
 
 
-def jx_jq(params: H4Params, pose: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def jx_jq(g: H4Geometry, pose: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The paper's Jx (..., 4, 4) and Jq (..., 4, 4) of eq. 8: ``Jx x_dot = Jq q_dot``.
 
-    Derivative of the closure ``(|B_i - A_i|^2 - l^2)/2 = 0`` with ``w_i = B_i - A_i``:
-    row i of Jx is ``[w_i^T, w_i . (z x Rz(theta) DC_k)]`` and
-    ``Jq = diag(w_i . (u_i x (A_i - P_i)))``. Units: Jx m (first 3 columns), m^2 (last); Jq m^2.
+    Derivative of each leg's closure ``(|B_i - A_i|^2 - l_i^2)/2 = 0`` at a rigid pose, with
+    ``w_i = B_i - A_i``: row i of Jx is ``[w_i^T, w_i . (z x (C_k - D))]`` and
+    ``Jq = diag(w_i . (u_i x (A_i - P_i)))``. Exact for ideal parallelograms (``g.ideal``).
     """
-    D, C, B, _ = plate_points(params, pose)
-    A, _ = forearm_points(params, q)
-    w = B - A
-    lever = cross(_Z, (C - D[..., None, :])[..., LEG_LATERAL, :])
-    jx = np.concatenate([w, np.einsum("...ia,...ia->...i", w, lever)[..., None]], axis=-1)
-    dA = cross(params.U.T, A - params.P.T)
-    jq_diag = np.einsum("...ia,...ia->...i", w, dA)
-    jq = jq_diag[..., :, None] * np.eye(4)
-    return jx, jq
+    pts = points(g, rigid_state(pose, q))
+    w = pts.B - pts.A
+    lever = cross(_Z, (pts.C - pts.D[..., None, :])[..., g.leg_lat, :])
+    jx = np.concatenate([w, np.sum(w * lever, axis=-1)[..., None]], axis=-1)
+    jq_diag = np.sum(w * cross(g.u, pts.A - g.P), axis=-1)
+    return jx, jq_diag[..., :, None] * np.eye(4)
 
 
-def jacobian(params: H4Params, pose: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``J = Jx^-1 Jq`` (eq. 8), x_dot = J q_dot, shape (..., 4, 4); units m/rad and rad/rad."""
-    jx, jq = jx_jq(params, pose, q)
-    return np.linalg.solve(jx, jq)
-
-
-def forward_geometry(
-    params: H4Params,
-    q: np.ndarray,
-    guess: np.ndarray | None = None,
-    *,
-    tol: float = 1e-13,
-    max_iter: int = 50,
-) -> np.ndarray:
-    """Pose [x, y, z, theta] of actuator angles q (4,), by Newton on the four leg closures.
+def forward_geometry(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None, *, tol: float = 1e-13,
+                     max_iter: int = 50) -> np.ndarray:
+    """Pose [x, y, z, theta] of actuator angles q (4,), by Newton on the eight bar closures.
 
     Args:
-        params: Robot parameters.
+        g: The robot's geometry.
         q: (4,) actuator angles, rad.
         guess: Starting pose. Default: theta = 0, D under the mean of the A_i (shifted by the mean
-            of DB) at the depth that gives the bars their length on average.
-        tol: Convergence threshold on the closure residual, m^2.
-        max_iter: Iteration cap.
+            plate offset) at the depth that gives the bars their length on average.
 
     Raises:
-        ConvergenceError: Newton did not converge (the legs cannot assemble, or a bad guess).
-        SingularPoseError: Jx became singular on the way.
+        ConvergenceError: Newton did not converge (the legs cannot assemble, or a bad guess),
+            or converged to an assembly that is not on the elbow-out branch of q.
     """
     qv = np.asarray(q, dtype=float)
     if qv.shape != (4,) or not np.all(np.isfinite(qv)):
         raise PoseError(f"q must be 4 finite actuator angles (rad), got {q!r}")
+    return forward_state(g, qv, guess, tol=tol, max_iter=max_iter)[0]
+
+
+def forward_state(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None, *, tol: float = 1e-13,
+                  max_iter: int = 50) -> tuple[np.ndarray, PlateState]:
+    """Pose and full :class:`PlateState` of actuator angles q (4,) (see :func:`forward_geometry`)."""
+    A = forearm_points(g, q).reshape(4, 2, 3).mean(axis=1)
     if guess is None:
-        A, _ = forearm_points(params, qv)
-        centre = A.mean(axis=0) - params.DB.mean(axis=1)
-        depth = np.sqrt(max(params.l**2 - np.mean(np.sum((A - A.mean(0)) ** 2, -1)), 0.25 * params.l**2))
+        offset = (g.C0[g.leg_lat] + g.b_leg).mean(axis=0)
+        centre = A.mean(axis=0) - offset
+        spread = np.mean(np.sum((A - A.mean(0)) ** 2, -1))
+        depth = np.sqrt(max(float(np.mean(g.l_leg)) ** 2 - spread, 0.25 * float(np.mean(g.l_leg)) ** 2))
         x = np.array([centre[0], centre[1], centre[2] - depth, 0.0])
     else:
-        x = as_poses(guess).copy()
-        if x.ndim != 1:
-            raise PoseError(f"guess must be a single pose (4,), got shape {x.shape}")
-    res = closure_residual(params, x, qv)
-    for _ in range(max_iter):
-        jx, _ = jx_jq(params, x, qv)
-        if np.linalg.cond(jx) > 1e12:
-            raise SingularPoseError(
-                f"forward geometry met a singular Jx (cond = {np.linalg.cond(jx):.2e}) at pose {x} for q = {qv}"
-            )
-        x = x - np.linalg.solve(jx, res)
-        res = closure_residual(params, x, qv)
-        if np.max(np.abs(res)) < tol:
-            # The closure is quadratic in |B - A|: make sure the assembly is the elbow-out one of q.
-            if np.allclose(inverse_geometry(params, x, on_error="nan"), qv, atol=1e-8):
-                return x
-            raise ConvergenceError(
-                f"forward geometry for q = {qv} converged to pose {x}, which is not on the elbow-out branch"
-            )
-    raise ConvergenceError(
-        f"forward geometry did not converge for q = {qv} rad in {max_iter} iterations "
-        f"(closure residual {np.max(np.abs(res)):.2e} m^2): the legs may not assemble"
-    )
+        x = as_pose(guess, "guess").copy()
+    start = rigid_state(x, q)
+    state, converged = _newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter)
+    if not converged:
+        raise ConvergenceError(f"forward geometry did not converge for q = {q} rad: the legs may not assemble")
+    pose = np.r_[state.D, np.arctan2(state.R[1, 0], state.R[0, 0])]
+    q_back = inverse_geometry(g, pose, on_error="nan", check=False)
+    if not np.allclose(q_back, q, atol=1e-8):
+        raise ConvergenceError(f"forward geometry for q = {q} converged to pose {pose}, which is not on the "
+                               "elbow-out branch")
+    return pose, state

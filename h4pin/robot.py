@@ -2,9 +2,19 @@
 """The H4 as a Pinocchio model with loop closures: :func:`load` and :class:`H4`.
 
 ``load("prototype")`` returns an :class:`H4` holding a plain ``pin.Model`` (a tree: base, four
-legs with universal joints, and the plate as a floating subtree), its geometry models, and the
+legs with universal joints, and the plate as a floating subtree), its geometry models, the
 eight Pinocchio 3-D point constraints (``pin.RigidConstraintModel``, ``CONTACT_3D``) that close
-the bars on the plate. Everything else in h4pin is computed from these.
+the bars on the plate, and :attr:`H4.geometry`, the per-leg and per-bar constants read from the
+model (:mod:`h4pin.model`). The URDF is the single source of truth: any URDF with the H4's named
+frames, closures and spring data loads (see the README, "Describe your own H4").
+
+What the loader reads, and checks, from the tree at its neutral configuration:
+
+* actuator i: the joint that carries frames A_i1, A_i2 (a revolute on the base); its axis u_i;
+* bar ij: the closure whose plate-side point is frame B_ij; the bar's two joints (a universal
+  joint centred on A_ij, below actuator i); its length |bar end - A_ij|;
+* the plate: frame D on a free-flyer body; C_k on the revolute joint of lateral bar k, a child
+  of that body; B_ij on a lateral bar. Optional frames P_i, A_i, B_i are checked if present.
 
 Velocity split: the 4 actuated joints ``v_a`` and the 24 passive ones ``v_p`` (16 bar
 revolutes, 6 plate free-flyer, 2 lateral revolutes). The 24 closure equations
@@ -16,20 +26,19 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
 from h4pin import geometry
-from h4pin.errors import MalformedURDFError, SingularPoseError
-from h4pin.params import LEG_LATERAL, VARIANTS, H4Params
-from h4pin.urdf import bar_names, closures_from_urdf, lateral_names, leg_names, params_from_urdf, to_urdf
+from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, URDFNotFoundError
+from h4pin.geometry import PlateState, Points
+from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
+from h4pin.params import PER_LEG, SPRINGS, VARIANTS, H4Params
+from h4pin.urdf import URDFExtras, decode, parse, to_urdf
 
-#: Frames every H4 URDF names (massless links on fixed joints, see :mod:`h4pin.urdf`).
-REQUIRED_FRAMES = (["D", "C_1", "C_2"] + [f"{p}_{i}" for p in "PAB" for i in range(1, 5)]
-                   + [f"{p}_{i}{j}" for p in "AB" for i in range(1, 5) for j in (1, 2)])
-
-#: Condition number of the passive closure Jacobian above which a pose is called singular.
+#: Condition number of the passive closure Jacobian above which :meth:`H4.passive_map` refuses.
 SINGULAR_COND = 1e10
 
 
@@ -46,54 +55,81 @@ def variant_path(name: str) -> Path:
     return urdf_dir() / f"h4_{name}.urdf"
 
 
-def load(source: str | Path | H4Params = "prototype") -> H4:
+def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any] | None = None,
+         bar_clearance: float = BAR_CLEARANCE) -> H4:
     """Load an H4: a variant name, a path to a URDF file, or an :class:`H4Params`.
 
     Args:
-        source: ``"prototype"`` (default) or ``"symmetric"`` (see :data:`h4pin.VARIANTS`), a path
-            to a URDF written by :func:`h4pin.urdf.to_urdf`, or parameters (the URDF is then
-            generated in memory).
+        source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"`` (see
+            :data:`h4pin.VARIANTS`), a path to any H4 URDF (an existing file is always taken as
+            a path), or parameters (the URDF is then generated in memory).
+        springs: Spring data given or overridden at load, by H4Params field name: ``kc``, ``E``,
+            ``I``, ``G``, ``I0``, ``forearm_stressed_fraction`` (a scalar or 4 values, one per
+            leg), ``Sb``, ``Eb`` (a scalar or 8 values, one per bar).
+        bar_clearance: m, the smallest distance allowed between the axes of bars of two legs.
 
     Raises:
-        ValueError: unknown variant name (the message lists the available ones).
-        FileNotFoundError: the path does not exist.
-        MalformedURDFError: the URDF does not describe an H4 completely.
+        ParameterError: unknown variant name (the message lists them), bad ``springs``.
+        URDFNotFoundError: the path does not exist.
+        MalformedURDFError: the file does not describe an H4 (the message names the element).
     """
     if isinstance(source, H4Params):
-        return H4(source, to_urdf(source), "<H4Params>")
-    text_source = str(source)
-    looks_like_path = isinstance(source, Path) or text_source.endswith(".urdf") or "/" in text_source
-    if not looks_like_path:
-        if text_source not in VARIANTS:
-            raise ValueError(f"unknown H4 variant {text_source!r}; available: {', '.join(sorted(VARIANTS))} "
-                             "(or pass a path to a URDF, or an H4Params)")
-        path = variant_path(text_source)
-    else:
-        path = Path(source)
+        return H4(to_urdf(source), "<H4Params>", springs=springs, bar_clearance=bar_clearance)
+    if not isinstance(source, (str, Path)):
+        raise ParameterError(f"source must be a variant name, a path or an H4Params, got {type(source).__name__}")
+    path = Path(source)
     if not path.is_file():
-        raise FileNotFoundError(f"no URDF file at {path}")
-    text = path.read_text()
-    return H4(params_from_urdf(text, str(path)), text, str(path))
+        text_source = str(source)
+        if isinstance(source, str) and text_source in VARIANTS:
+            path = variant_path(text_source)
+        elif isinstance(source, Path) or text_source.endswith(".urdf") or "/" in text_source:
+            raise URDFNotFoundError(f"no URDF file at {path}")
+        else:
+            raise ParameterError(f"unknown H4 variant {text_source!r}; available: {', '.join(sorted(VARIANTS))} "
+                                 "(or pass a path to a URDF, or an H4Params)")
+    return H4(decode(path.read_bytes(), str(path)), str(path), springs=springs, bar_clearance=bar_clearance)
+
+
+class Kinematics(NamedTuple):
+    """One pose of an H4, through Pinocchio: everything the stiffness model needs, no hidden state.
+
+    Attributes:
+        pose: (4,) [x, y, z, theta].
+        state: the assembled :class:`h4pin.geometry.PlateState`.
+        configuration: (nq,) Pinocchio configuration, all loops closed.
+        points: characteristic points from Pinocchio's frame placements.
+        JB: (8, 3, 8) Jacobians of the B_ij w.r.t. dtp = [dD, dOmega, domega_1, domega_2].
+        JA: (8, 3, 4) Jacobians of the A_ij w.r.t. the actuator angles.
+    """
+
+    pose: np.ndarray
+    state: PlateState
+    configuration: np.ndarray
+    points: Points
+    JB: np.ndarray
+    JA: np.ndarray
 
 
 class H4:
-    """An H4 robot: Pinocchio model, geometry models, closures and parameters.
+    """An H4 robot: Pinocchio model, geometry models, closures and per-element geometry.
 
     Attributes:
-        params: The :class:`H4Params` the URDF encodes.
-        model, data: Pinocchio model (nq = 29, nv = 28) and its data.
-        visual_model, collision_model: Pinocchio geometry models (primitives).
+        geometry: :class:`h4pin.model.H4Geometry`, read from the model at load.
+        model, data: Pinocchio model and its data.
+        visual_model, collision_model: Pinocchio geometry models.
         constraint_models, constraint_datas: the 8 ``CONTACT_3D`` closures, bar ij at B_ij,
-            in the order 11, 12, 21, ..., 42 (index n = 2(i-1) + (j-1)).
-        frames: Frame ids by name: P_i, A_i, A_ij, B_i, B_ij, C_k, D, bar_ij_end.
-        v_act, v_pas: Velocity indices of the 4 actuators and of the 24 passive joints.
+            in the order 11, 12, 21, ..., 42 (index n = 2(i-1) + (j-1)); joint 1 is the bar's.
+        frames: Frame ids by name.
+        actuated_joint_names: the 4 actuated joints, leg order.
+        v_act, v_pas: Velocity indices of the 4 actuators and of the passive joints.
         urdf: The URDF text; source: where it came from.
     """
 
-    def __init__(self, params: H4Params, urdf_text: str, source: str = "URDF"):
-        self.params = params
+    def __init__(self, urdf_text: str, source: str = "URDF", *, springs: dict[str, Any] | None = None,
+                 bar_clearance: float = BAR_CLEARANCE):
         self.urdf = urdf_text
         self.source = source
+        extras = parse(urdf_text, source)
         try:
             self.model = pin.buildModelFromXML(urdf_text)
             self.visual_model = pin.buildGeomFromUrdfString(self.model, urdf_text, pin.GeometryType.VISUAL)
@@ -102,75 +138,245 @@ class H4:
             raise MalformedURDFError(f"{source}: Pinocchio cannot load it ({exc})") from None
         self.data = self.model.createData()
         self.frames = {f.name: i for i, f in enumerate(self.model.frames)}
-        self._jid = {name: i for i, name in enumerate(self.model.names)}
-        missing = [n for n in REQUIRED_FRAMES if n not in self.frames]
-        if missing:
-            raise MalformedURDFError(f"{source}: frame(s) {', '.join(missing)} missing (see h4pin.urdf)")
+        if not (isinstance(bar_clearance, (int, float)) and np.isfinite(bar_clearance) and bar_clearance >= 0):
+            raise ParameterError(f"bar_clearance must be a finite length >= 0 (m), got {bar_clearance!r}")
+        self._read(extras, springs or {}, float(bar_clearance))
 
-        def jidx(name: str) -> pin.JointModel:
-            return self.model.joints[self._jid[name]]
+    # ------------------------------------------------------------------ reading
+    def _frame(self, name: str) -> int:
+        if name not in self.frames:
+            raise MalformedURDFError(f"{self.source}: frame {name} is missing (the H4's named frames: "
+                                     "A_ij, B_ij, C_k, D; see the README)")
+        return self.frames[name]
 
-        self.v_act = np.array([jidx(leg_names(i + 1)["joint"]).idx_v for i in range(4)])
-        self.v_pas = np.setdiff1d(np.arange(self.model.nv), self.v_act)
-        self._q_act = np.array([jidx(leg_names(i + 1)["joint"]).idx_q for i in range(4)])
-        self._q_u = np.array([[jidx(bar_names(i + 1, j + 1)[u]).idx_q for u in ("u1", "u2")]
-                              for i in range(4) for j in range(2)])
-        self._q_plate = jidx("plate").idx_q
-        self._v_plate = np.r_[jidx("plate").idx_v + np.arange(6),
-                              [jidx(lateral_names(k + 1)["joint"]).idx_v for k in range(2)]]
-        self._q_lat = np.array([jidx(lateral_names(k + 1)["joint"]).idx_q for k in range(2)])
-        self._build_constraints()
-        order = [bar_names(i + 1, j + 1) for i in range(4) for j in range(2)]
-        self._fid_D = self.frames["D"]
-        #: Frame ids of D, C_k, B_i, B_ij, P_i, A_i, A_ij in this order (31 frames).
-        self.point_frames = [self.frames[n] for n in (
-            ["D", "C_1", "C_2"] + [f"B_{i}" for i in range(1, 5)] + [b["B"] for b in order]
-            + [f"P_{i}" for i in range(1, 5)] + [f"A_{i}" for i in range(1, 5)] + [b["A"] for b in order])]
-        self._jid_lat = [self._jid[lateral_names(k + 1)["joint"]] for k in range(2)]
-        self._jid_act = [self._jid[leg_names(i + 1)["joint"]] for i in range(4)]
-        self._bar_lat = np.repeat(LEG_LATERAL, 2)
-        parents = [self.model.frames[f].parentJoint for f in self.point_frames]
-        self._point_joints = sorted(set(parents))
-        self._point_joint_index = np.array([self._point_joints.index(j) for j in parents])
-        self._point_local = np.array([self.model.frames[f].placement.translation for f in self.point_frames])
-        # Per-bar constants of assemble: B_ij - C_k in the frame of lateral bar k, u_i and a_i.
-        self._b_local = (params.plate_ball_centres() - params.DC.T[LEG_LATERAL][:, None, :]).reshape(8, 3)
-        self._u_bar = np.repeat(params.U.T, 2, axis=0)
-        self._a_bar = np.repeat(params.forearm_dirs.T, 2, axis=0)
-        self._q_neutral = pin.neutral(self.model)
+    def _err(self, message: str) -> MalformedURDFError:
+        return MalformedURDFError(f"{self.source}: {message}")
 
-    def _build_constraints(self) -> None:
-        closures = {c[0]: c for c in closures_from_urdf(self.urdf, self.source)}
-        self.constraint_models = pin.StdVec_RigidConstraintModel()
+    def _read(self, extras: URDFExtras, springs: dict[str, Any], bar_clearance: float) -> None:
+        m, d = self.model, self.data
+        q0 = pin.neutral(m)
+        pin.framesForwardKinematics(m, d, q0)
+        pin.computeJointJacobians(m, d, q0)
+        pos = {name: d.oMf[fid].translation.copy() for name, fid in self.frames.items()}
+
+        def parent(name: str) -> int:
+            return m.frames[self._frame(name)].parentJoint
+
+        def axis(j: int) -> np.ndarray:
+            col = pin.getJointJacobian(m, d, j, pin.LOCAL_WORLD_ALIGNED)[3:, m.joints[j].idx_v]
+            return col / np.linalg.norm(col)
+
+        def off_axis(point: np.ndarray, j: int) -> float:
+            rel = point - d.oMi[j].translation
+            return float(np.linalg.norm(rel - axis(j) * (rel @ axis(j))))
+
+        def revolute(j: int) -> bool:
+            name = m.joints[j].shortname()
+            return (name in ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
+                    and m.joints[j].nq == 1)
+
+        # Actuators: the joint carrying A_i1 and A_i2.
+        act = []
+        for i in range(1, 5):
+            j = parent(f"A_{i}1")
+            if parent(f"A_{i}2") != j:
+                raise self._err(f"frames A_{i}1 and A_{i}2 are not on the same body (forearm {i})")
+            if not revolute(j) or m.parents[j] != 0:
+                raise self._err(f"forearm {i} (frame A_{i}1) must hang from the base on one revolute joint, "
+                                f"found joint '{m.names[j]}' ({m.joints[j].shortname()})")
+            act.append(j)
+        if len(set(act)) != 4:
+            raise self._err("the four legs must have four different actuated joints")
+        u = np.array([axis(j) for j in act])
+        A0 = np.array([pos[f"A_{i}{j}"] for i in range(1, 5) for j in (1, 2)])
+        A_mid = A0.reshape(4, 2, 3).mean(axis=1)
+        origin = np.array([d.oMi[j].translation for j in act])
+        P = origin + u * np.sum((A_mid - origin) * u, axis=1, keepdims=True)
         for i in range(4):
-            for j in range(2):
-                name = bar_names(i + 1, j + 1)["closure"]
-                if name not in closures:
-                    raise MalformedURDFError(f"{self.source}: loop closure '{name}' is missing")
-                _, parent, pxyz, child, cxyz = closures[name]
-                sides = []
-                for link, xyz in ((parent, pxyz), (child, cxyz)):
-                    if link not in self.frames:
-                        raise MalformedURDFError(f"{self.source}: closure '{name}' names unknown frame '{link}'")
-                    f = self.model.frames[self.frames[link]]
-                    sides += [f.parentJoint, f.placement * pin.SE3(np.eye(3), xyz)]
-                cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, self.model, *sides, pin.ReferenceFrame.LOCAL)
-                cm.name = name
-                self.constraint_models.append(cm)
+            name = f"P_{i + 1}"
+            if name in self.frames and off_axis(pos[name], act[i]) > POINT_TOL:
+                raise self._err(f"frame {name} is not on the axis of actuator '{m.names[act[i]]}'")
+            name = f"A_{i + 1}"
+            if name in self.frames and np.linalg.norm(pos[name] - A_mid[i]) > POINT_TOL:
+                raise self._err(f"frame {name} is not the middle of A_{i + 1}1 and A_{i + 1}2")
+
+        # Plate: D on a free-flyer body, C_k on lateral revolutes under it.
+        central = parent("D")
+        if "FreeFlyer" not in m.joints[central].shortname() or m.parents[central] != 0:
+            raise self._err("frame D must be on the central bar, a floating body (URDF joint type 'floating')")
+        lateral = []
+        for k in (1, 2):
+            j = parent(f"C_{k}")
+            if not revolute(j) or m.parents[j] != central:
+                raise self._err(f"frame C_{k} must be on lateral bar {k}, on a revolute joint of the central bar")
+            if off_axis(pos[f"C_{k}"], j) > POINT_TOL:
+                raise self._err(f"frame C_{k} is not on the axis of its revolute joint '{m.names[j]}'")
+            lateral.append(j)
+        v = np.array([axis(j) for j in lateral])
+        sign = np.where(v[:, 2] >= 0, 1.0, -1.0)
+        v = v * sign[:, None]
+        if np.any(v[:, 2] < 0.5):
+            raise self._err("the lateral bars' revolute axes must be close to vertical (the plate's design)")
+
+        # Bars: each closure ends on one B_ij frame; the other side is the bar.
+        closures = {}
+        for c in extras.closures:
+            sides = []
+            for link, xyz in ((c.parent, c.parent_xyz), (c.child, c.child_xyz)):
+                if link not in self.frames:
+                    raise self._err(f"closure '{c.name}' names unknown link '{link}'")
+                f = m.frames[self.frames[link]]
+                sides.append((link, f.parentJoint, f.placement * pin.SE3(np.eye(3), xyz)))
+            plate_side = [s for s in sides if s[1] in lateral]
+            if len(plate_side) != 1:
+                raise self._err(f"closure '{c.name}' must join a bar to a lateral bar of the plate")
+            bar_side = sides[1 - sides.index(plate_side[0])]
+            world = d.oMi[plate_side[0][1]] * plate_side[0][2]
+            closures[c.name] = (bar_side, plate_side[0], world.translation)
+        lat, lengths, b, bar_links, cms, ujoint = [], [], [], [], [], []
+        for i in range(4):
+            for jj in range(2):
+                name = f"B_{i + 1}{jj + 1}"
+                target = pos[name] if name in self.frames else None
+                if target is None:
+                    self._frame(name)
+                found = [c for c, (_, _, w) in closures.items() if np.linalg.norm(w - target) <= POINT_TOL]
+                if not found:
+                    raise self._err(f"loop closure of bar {i + 1}{jj + 1} is missing: no <constraint> ends at "
+                                    f"frame {name}")
+                (link, jb, place_b), (_, jl, place_l), _ = closures.pop(found[0])
+                if parent(name) != jl:
+                    raise self._err(f"closure '{found[0]}' ends at {name} but on another body than that frame")
+                jp = m.parents[jb]
+                anchor = A0[2 * i + jj]
+                if not (revolute(jb) and revolute(jp) and m.parents[jp] == act[i]):
+                    raise self._err(f"bar {i + 1}{jj + 1} ('{link}') must hang from forearm {i + 1} on two revolute "
+                                    "joints (a universal joint)")
+                if max(off_axis(anchor, jb), off_axis(anchor, jp)) > POINT_TOL:
+                    raise self._err(f"the universal joint of bar {i + 1}{jj + 1} is not centred on A_{i + 1}{jj + 1}")
+                end = (d.oMi[jb] * place_b).translation
+                lengths.append(float(np.linalg.norm(end - anchor)))
+                lat.append(lateral.index(jl))
+                b.append(pos[name] - pos[f"C_{lateral.index(jl) + 1}"])
+                bar_links.append(link)
+                ujoint.append((jp, jb, axis(jp), axis(jb), end - anchor))
+                cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, m, jb, place_b, jl, place_l,
+                                              pin.ReferenceFrame.LOCAL)
+                cm.name = found[0]
+                cms.append(cm)
+        if closures:
+            raise self._err(f"closure(s) {', '.join(closures)} end at no B_ij frame")
+        lat_arr = np.array(lat)
+        for i in range(4):
+            if lat_arr[2 * i] != lat_arr[2 * i + 1]:
+                raise self._err(f"the two bars of leg {i + 1} end on different lateral bars")
+            name = f"B_{i + 1}"
+            mid = 0.5 * (pos[f"B_{i + 1}1"] + pos[f"B_{i + 1}2"])
+            if name in self.frames and np.linalg.norm(pos[name] - mid) > POINT_TOL:
+                raise self._err(f"frame {name} is not the middle of B_{i + 1}1 and B_{i + 1}2")
+
+        self.actuated_joint_names = tuple(m.names[j] for j in act)
+        data = self._springs(extras, springs, act, bar_links)
+        lo, hi = m.lowerPositionLimit, m.upperPositionLimit
+        q_idx = [m.joints[j].idx_q for j in act]
+        lat_idx = [m.joints[j].idx_q for j in lateral]
+        om_lo = np.where(sign > 0, lo[lat_idx], -hi[lat_idx])
+        om_hi = np.where(sign > 0, hi[lat_idx], -lo[lat_idx])
+        self.geometry = H4Geometry(P=P, u=u, A0=A0, l=np.array(lengths), lat=lat_arr, C0=np.array(
+            [pos["C_1"], pos["C_2"]]) - pos["D"], b=np.array(b), v=v, springs=data, q_lo=lo[q_idx], q_hi=hi[q_idx],
+            omega_lo=om_lo, omega_hi=om_hi, bar_clearance=bar_clearance)
+
+        self.constraint_models = pin.StdVec_RigidConstraintModel()
+        for cm in cms:
+            self.constraint_models.append(cm)
         self.constraint_datas = pin.StdVec_RigidConstraintData()
         for cm in self.constraint_models:
             self.constraint_datas.append(cm.createData())
+        self.v_act = np.array([m.joints[j].idx_v for j in act])
+        self.v_pas = np.setdiff1d(np.arange(m.nv), self.v_act)
+        self._q_act = np.array(q_idx)
+        self._q_lat = np.array(lat_idx)
+        self._lat_sign = sign
+        self._q_u = np.array([[m.joints[jp].idx_q, m.joints[jb].idx_q] for jp, jb, *_ in ujoint])
+        self._e1 = np.array([e1 for _, _, e1, _, _ in ujoint])
+        self._e2 = np.array([e2 for _, _, _, e2, _ in ujoint])
+        self._p0 = np.array([p0 for *_, p0 in ujoint])
+        self._central = central
+        self._q_plate = m.joints[central].idx_q
+        self._X0 = d.oMi[central].copy()
+        self._D0 = pos["D"]
+        self._fid_D = self.frames["D"]
+        self._v_plate = np.r_[m.joints[central].idx_v + np.arange(6), [m.joints[j].idx_v for j in lateral]]
+        self._jid_lat = lateral
+        self._jid_act = act
+        order = [f"{i}{j}" for i in range(1, 5) for j in (1, 2)]
+        self._point_frames = [self.frames[n] for n in ["D", "C_1", "C_2"] + [f"B_{s}" for s in order]
+                              + [f"A_{s}" for s in order]]
+        self._q_neutral = q0
+
+    def _springs(self, extras: URDFExtras, override: dict[str, Any], act: list[int],
+                 bar_links: list[str]) -> dict[str, np.ndarray]:
+        unknown = set(override) - set(SPRINGS)
+        if unknown:
+            raise ParameterError(f"springs: unknown field(s) {', '.join(sorted(unknown))}; known: {', '.join(SPRINGS)}")
+        owners = {}
+        for name in SPRINGS:
+            if name == "kc":
+                owners[name] = [f"actuated joint '{self.model.names[j]}'" for j in act]
+            elif name in PER_LEG:
+                owners[name] = [f"forearm link '{extras.joint_child.get(self.model.names[j], '?')}'" for j in act]
+            else:
+                owners[name] = [f"bar link '{link}'" for link in bar_links]
+        keys = {"kc": [self.model.names[j] for j in act]}
+        forearms = [extras.joint_child.get(self.model.names[j], "") for j in act]
+        out = {}
+        for name in SPRINGS:
+            elements = keys["kc"] if name == "kc" else forearms if name in PER_LEG else bar_links
+            values = np.array([extras.springs.get(e, {}).get(name, np.nan) for e in elements])
+            if name in override:
+                try:
+                    values = np.broadcast_to(np.asarray(override[name], dtype=float), values.shape).copy()
+                except (TypeError, ValueError):
+                    raise ParameterError(f"springs['{name}'] must be a number or {values.size} numbers, got "
+                                         f"{override[name]!r}") from None
+            missing = np.flatnonzero(np.isnan(values))
+            if missing.size:
+                tag = {"kc": "h4_actuator"}.get(name, "h4_forearm" if name in PER_LEG else "h4_bar")
+                attr = "stressed_fraction" if name == "forearm_stressed_fraction" else name
+                raise self._err(f"spring datum '{attr}' of the {owners[name][missing[0]]} is missing "
+                                f"(<{tag} {attr}=\"...\"/> inside it, or load(..., springs={{'{name}': ...}}))")
+            out[name] = values
+        try:
+            return check_springs(out, self.source)
+        except MalformedURDFError as exc:
+            for name in SPRINGS:
+                if f"'{name}'" in str(exc):
+                    bad = out[name]
+                    k = int(np.argmax(~np.isfinite(bad) | (bad <= 0) | ((bad > 1) if "fraction" in name else False)))
+                    raise self._err(f"the {owners[name][k]}: spring datum '{name}' = {float(bad[k])!r} is not physical "
+                                    "(finite and > 0 needed)") from None
+            raise
 
     # ----------------------------------------------------------------- geometry
-    def inverse_geometry(self, pose: np.ndarray, *, on_error: str = "raise") -> np.ndarray:
-        """Actuator angles (rad) of pose [x, y, z, theta] (m, rad); (4,) -> (4,), (N, 4) -> (N, 4).
-
-        Closed form, elbow-out branch (see :func:`h4pin.geometry.inverse_geometry`).
+    @property
+    def params(self) -> H4Params:
+        """The nominal :class:`H4Params` of this robot, if its layout is one they describe.
 
         Raises:
-            UnreachablePoseError: a leg cannot reach its plate point (the message names the leg).
+            MalformedURDFError: the robot is not of that family (e.g. a toleranced robot)."""
+        return params_from_geometry(self.geometry)
+
+    def inverse_geometry(self, pose: np.ndarray, *, on_error: str = "raise", check: bool = True) -> np.ndarray:
+        """Actuator angles (rad) of pose [x, y, z, theta] (m, rad); (4,) -> (4,), (N, 4) -> (N, 4).
+
+        See :func:`h4pin.geometry.inverse_geometry` (elbow-out; joint limits and interferences
+        checked unless ``check=False``).
+
+        Raises:
+            UnreachablePoseError: a leg cannot reach its plate point (the message names the leg),
+                or (subclasses) :class:`h4pin.JointLimitError`, :class:`h4pin.InterferenceError`.
         """
-        return geometry.inverse_geometry(self.params, pose, on_error=on_error)
+        return geometry.inverse_geometry(self.geometry, pose, on_error=on_error, check=check)
 
     def forward_geometry(self, q: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """Pose [x, y, z, theta] (m, rad) of actuator angles q (4,), by Newton.
@@ -178,68 +384,95 @@ class H4:
         Raises:
             ConvergenceError: the legs do not assemble (or Newton failed from ``guess``).
         """
-        return geometry.forward_geometry(self.params, q, guess)
+        return geometry.forward_geometry(self.geometry, q, guess)
 
-    def configuration(self, pose: np.ndarray, q_act: np.ndarray | None = None) -> np.ndarray:
-        """Full Pinocchio configuration (nq,) of a rigid pose, all 8 closures satisfied.
+    def state(self, pose: np.ndarray, *, check: bool = True) -> PlateState:
+        """The assembled :class:`h4pin.geometry.PlateState` of one pose (raises on a bad pose)."""
+        x = geometry.as_pose(pose)
+        sol = geometry.solve(self.geometry, x, check=check)
+        geometry.raise_for_status(sol.status, sol.detail, batch=False)
+        return sol.state
 
-        Actuators from the inverse geometry; each bar's universal joint from the direction of
-        B_ij - A_ij in the forearm frame (closed form); plate free-flyer at D with orientation
-        Rz(theta); lateral joints at omega_k = -theta (the lateral bars only translate).
-        ``q_act`` (4,), the actuator angles of ``pose``, saves an inverse geometry when known.
+    def configuration(self, pose: np.ndarray, *, check: bool = True) -> np.ndarray:
+        """Full Pinocchio configuration (nq,) of ``pose`` (4,), all 8 closures satisfied.
+
+        Actuators from the inverse geometry; each bar's universal joint in closed form (it points
+        the bar from A_ij to B_ij); plate free-flyer at D with its orientation; lateral joints at
+        their relative angles (-theta for an ideal robot: the lateral bars only translate).
         """
-        x = geometry.as_poses(pose)
-        if x.ndim != 1:
-            raise ValueError(f"configuration takes a single pose (4,), got shape {x.shape}")
-        if q_act is None:
-            q_act = self.inverse_geometry(x)
-        return self._configuration(x, q_act)
+        return self.assemble(self.state(pose, check=check))
 
-    def _configuration(self, x: np.ndarray, q_act: np.ndarray) -> np.ndarray:
-        rot = geometry.rot_z(x[3])
-        return self.assemble(q_act, x[:3], rot, np.array([-x[3], -x[3]]))
+    def assemble(self, state: PlateState) -> np.ndarray:
+        """Configuration (nq,) of actuator angles and plate placement; bars aimed at B_ij.
 
-    def assemble(self, q_act: np.ndarray, d: np.ndarray, rotation: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """Configuration (nq,) with given actuator angles and plate placement; bars aimed at B_ij.
-
-        Args:
-            q_act: (4,) actuator angles, rad.
-            d: (3,) position of D, m.
-            rotation: (3, 3) world orientation of the central bar (Rz(theta) at a rigid pose).
-            omega: (2,) joint angles of the lateral bars, rad (-theta at a rigid pose).
-
-        Each bar's universal joint points the bar from A_ij to B_ij (closed form); the closures
-        hold exactly when the plate placement is consistent with q_act (e.g. from
-        :meth:`configuration`), and approximately for a slightly deformed robot (used to draw
-        deflected shapes).
+        The closures hold exactly when ``state`` is assembled (e.g. from :meth:`state`), and
+        approximately for a slightly deformed robot (used to draw deflected shapes). Each
+        universal joint is solved in closed form (two rotations about axes through A_ij that
+        take the bar's end to the direction of B_ij; the branch closest to the reference).
         """
-        p = self.params
-        _, Aij = geometry.forearm_points(p, np.asarray(q_act, float))
-        lat = rotation @ geometry.rot_z(np.asarray(omega, float))  # (2, 3, 3)
-        ck = d + (rotation @ p.DC).T  # C_k, (2, 3)
-        k = self._bar_lat
-        Bij = ck[k] + np.einsum("nab,nb->na", lat[k], self._b_local)
-        u, a = self._u_bar, self._a_bar
+        g = self.geometry
+        q_act = np.asarray(state.q, float)
+        aij = geometry.forearm_points(g, q_act)
+        _, bij, _ = geometry.plate_points(g, np.asarray(state.D, float), np.asarray(state.R, float),
+                                          np.asarray(state.omega, float))
+        # Target direction of each bar in the forearm's reference orientation.
         qb = np.repeat(q_act, 2)
-        w = Bij - Aij.reshape(8, 3)
-        w = w / np.sqrt(np.sum(w * w, axis=1, keepdims=True))
-        # Bar direction in the forearm frame: Rot(u, -q) w (Rodrigues).
-        c, s = np.cos(qb)[:, None], np.sin(qb)[:, None]
-        uw = np.sum(u * w, axis=1, keepdims=True)
-        bar = w * c - geometry.cross(u, w) * s + u * uw * (1 - c)
-        # bar = u sin(beta) - cos(beta) (a sin(alpha) + z cos(alpha))
-        beta = np.arcsin(np.clip(np.sum(bar * u, axis=1), -1.0, 1.0))
-        alpha = np.arctan2(-np.sum(bar * a, axis=1), -bar[:, 2])
+        ub = np.repeat(g.u, 2, axis=0)
+        w = geometry.rotate(bij - aij, ub, -qb)
+        norm_p = np.linalg.norm(self._p0, axis=1)
+        t = w * (norm_p / np.linalg.norm(w, axis=1))[:, None]
+        alpha, beta = _universal_angles(self._e1, self._e2, self._p0, t)
         q = self._q_neutral.copy()
         q[self._q_act] = q_act
         q[self._q_u[:, 0]] = alpha
         q[self._q_u[:, 1]] = beta
-        q[self._q_plate:self._q_plate + 7] = pin.SE3ToXYZQUAT(pin.SE3(rotation, np.asarray(d, float)))
-        q[self._q_lat] = omega
+        R = np.asarray(state.R, float)
+        world = pin.SE3(R @ self._X0.rotation, R @ (self._X0.translation - self._D0) + np.asarray(state.D, float))
+        q[self._q_plate:self._q_plate + 7] = pin.SE3ToXYZQUAT(self._X0.inverse() * world)
+        q[self._q_lat] = self._lat_sign * np.asarray(state.omega, float)
         return q
+
+    def kinematics(self, pose: np.ndarray) -> Kinematics:
+        """Everything about one pose through Pinocchio (:class:`Kinematics`): the assembled
+        configuration, the points from Pinocchio's frame placements, and the Jacobians of the
+        B_ij and A_ij points from Pinocchio's joint Jacobians.
+
+        ``dB_ij = JB[n] dtp`` with ``dtp = [dD, dOmega, domega_1, domega_2]`` (world-aligned at
+        D), and ``dA_ij = JA[n] dq``: the joint Jacobians (LOCAL_WORLD_ALIGNED) of the lateral
+        bars and forearms shifted to the points (``v_X = v_joint + w x (X - joint)``); the plate
+        columns mapped from the free-flyer's local velocity to dtp with the frame Jacobian of D.
+
+        Raises:
+            UnreachablePoseError (and subclasses): the robot cannot take the pose.
+        """
+        x = geometry.as_pose(pose)
+        st = self.state(x)
+        q = self.assemble(st)
+        m, d = self.model, self.data
+        pin.computeJointJacobians(m, d, q)
+        pin.updateFramePlacements(m, d)
+        xyz = np.array([d.oMf[f].translation for f in self._point_frames])
+        g = self.geometry
+        bij, aij = xyz[3:11], xyz[11:19]
+        lwa = pin.LOCAL_WORLD_ALIGNED
+        jd = pin.getFrameJacobian(m, d, self._fid_D, lwa)[:, self._v_plate]
+        to_tp = np.eye(8)
+        to_tp[:6, :6] = jd[:, :6]
+        jlat = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self._v_plate] for j in self._jid_lat])
+        jact = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self.v_act] for j in self._jid_act])
+        olat = np.array([d.oMi[j].translation for j in self._jid_lat])
+        oact = np.array([d.oMi[j].translation for j in self._jid_act])
+        jl, ja = jlat[g.lat], jact[np.arange(8) // 2]
+        jb = jl[:, :3] - _cross_columns(bij - olat[g.lat], jl[:, 3:])
+        ja = ja[:, :3] - _cross_columns(aij - oact[np.arange(8) // 2], ja[:, 3:])
+        v_world = st.R @ g.v.T
+        pts = Points(D=xyz[0], C=xyz[1:3], B=bij.reshape(4, 2, 3).mean(axis=1), Bij=bij.reshape(4, 2, 3), P=g.P,
+                     A=aij.reshape(4, 2, 3).mean(axis=1), Aij=aij.reshape(4, 2, 3), v=v_world.T)
+        return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
 
     def closure_residuals(self, q: np.ndarray) -> np.ndarray:
         """Position errors of the 8 closures at configuration q, (8, 3) in m, from Pinocchio."""
+        q = self._as_configuration(q)
         pin.forwardKinematics(self.model, self.data, q)
         out = np.empty((8, 3))
         for n, (cm, cd) in enumerate(zip(self.constraint_models, self.constraint_datas, strict=True)):
@@ -247,23 +480,28 @@ class H4:
             out[n] = cd.c1Mc2.translation
         return out
 
+    def _as_configuration(self, q: Any) -> np.ndarray:
+        try:
+            qv = np.asarray(q, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(f"q must be a configuration of {self.model.nq} numbers, got {q!r}") from None
+        if qv.shape != (self.model.nq,) or not np.all(np.isfinite(qv)):
+            raise ParameterError(f"q must be a finite configuration of shape ({self.model.nq},), got shape {qv.shape}")
+        return qv
+
     # ---------------------------------------------------------------- Jacobians
-    def compute(self, q: np.ndarray) -> None:
-        """Run Pinocchio's kinematics, joint Jacobians, frames and closures at configuration q."""
-        pin.computeJointJacobians(self.model, self.data, q)
-        pin.updateFramePlacements(self.model, self.data)
-        for cm, cd in zip(self.constraint_models, self.constraint_datas, strict=True):
-            cm.calc(self.model, self.data, cd)
-
-    def passive_map(self) -> np.ndarray:
-        """``S`` (nv, 4) with ``v = S q_dot``: the closed-loop velocity of every joint.
-
-        From the closure Jacobian after :meth:`compute`: ``v_p = -Jc_p^-1 Jc_a q_dot``.
+    def passive_map(self, q: np.ndarray) -> np.ndarray:
+        """``S`` (nv, 4) with ``v = S q_dot`` at configuration q: the closed-loop velocity of
+        every joint, from Pinocchio's closure Jacobian: ``v_p = -Jc_p^-1 Jc_a q_dot``.
 
         Raises:
             SingularPoseError: the 24x24 passive closure block is singular (cond > 1e10).
         """
-        jc = pin.getConstraintsJacobian(self.model, self.data, self.constraint_models, self.constraint_datas)
+        m, d = self.model, self.data
+        pin.computeJointJacobians(m, d, q)
+        for cm, cd in zip(self.constraint_models, self.constraint_datas, strict=True):
+            cm.calc(m, d, cd)
+        jc = pin.getConstraintsJacobian(m, d, self.constraint_models, self.constraint_datas)
         jp, ja = jc[:, self.v_pas], jc[:, self.v_act]
         try:
             inv = np.linalg.inv(jp)
@@ -273,7 +511,7 @@ class H4:
         if not cond < SINGULAR_COND:
             raise SingularPoseError(f"the passive closure Jacobian is singular (cond = {cond:.2e}): "
                                     "the plate has an uncontrolled motion at this pose")
-        s = np.zeros((self.model.nv, 4))
+        s = np.zeros((m.nv, 4))
         s[self.v_act] = np.eye(4)
         s[self.v_pas] = -inv @ ja
         return s
@@ -281,56 +519,24 @@ class H4:
     def jacobian(self, pose: np.ndarray) -> np.ndarray:
         """J (4, 4) with x_dot = J q_dot (eq. 8), from Pinocchio's closure and frame Jacobians.
 
-        The passive velocities come from the closure Jacobians (:meth:`passive_map`); the plate
-        motion from the frame Jacobian of D (LOCAL_WORLD_ALIGNED), rows v_x, v_y, v_z, w_z.
+        The passive velocities come from the 24x24 closure Jacobian (:meth:`passive_map`), the
+        plate motion from the frame Jacobian of D (LOCAL_WORLD_ALIGNED), rows v_x, v_y, v_z, w_z.
+        An independent route to the J that :mod:`h4pin.stiffness` computes from M1 and M3.
         """
-        self.compute(self.configuration(pose))
-        return self.plate_velocity_jacobian()
-
-    def plate_velocity_jacobian(self) -> np.ndarray:
-        """J (4, 4) of eq. 8 at the configuration of the last :meth:`compute`."""
+        s = self.passive_map(self.configuration(pose))
         jd = pin.getFrameJacobian(self.model, self.data, self._fid_D, pin.LOCAL_WORLD_ALIGNED)
-        return jd[[0, 1, 2, 5]] @ self.passive_map()
+        return jd[[0, 1, 2, 5]] @ s
 
     def jx_jq(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The paper's Jx and Jq of eq. 8 (closed form), ``Jx x_dot = Jq q_dot``."""
         x = geometry.as_poses(pose)
-        return geometry.jx_jq(self.params, x, self.inverse_geometry(x))
-
-    def plate_jacobians(self, points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """After :meth:`compute`: Jacobians of the B_ij (8, 3, 8) and A_ij (8, 3, 4) points.
-
-        ``dB_ij = JB[n] dtp`` with ``dtp = [dD, dOmega, domega_1, domega_2]`` (world-aligned at
-        D, relative lateral rotations), and ``dA_ij = JA[n] dq`` for actuator rotations. Both are
-        Pinocchio Jacobians (LOCAL_WORLD_ALIGNED): the joint Jacobians of the lateral bars and
-        forearms, shifted to the points (``v_X = v_joint + w x (X - joint)``); the plate columns
-        are mapped from the free-flyer's local velocity to dtp with the frame Jacobian of D.
-        ``points``: :meth:`frame_points`, if already computed.
-        """
-        m, d = self.model, self.data
-        lwa = pin.LOCAL_WORLD_ALIGNED
-        jd = pin.getFrameJacobian(m, d, self._fid_D, lwa)[:, self._v_plate]
-        to_tp = np.eye(8)
-        to_tp[:6, :6] = jd[:, :6]  # dtp[:6] = J_D,ff v_ff; lateral columns are identity
-        jlat = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self._v_plate] for j in self._jid_lat])
-        jact = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self.v_act] for j in self._jid_act])
-        pts = self.frame_points() if points is None else points
-        bij, aij = pts[7:15], pts[23:31]
-        jl, ja = jlat[self._bar_lat], jact[np.arange(8) // 2]
-        jb = jl[:, :3] - _cross_columns(bij - pts[1:3][self._bar_lat], jl[:, 3:])
-        ja = ja[:, :3] - _cross_columns(aij - pts[15:19][np.arange(8) // 2], ja[:, 3:])
-        return jb @ np.linalg.inv(to_tp), ja
-
-    def frame_points(self) -> np.ndarray:
-        """World positions (31, 3) of the frames D, C_k, B_i, B_ij, P_i, A_i, A_ij (in this order)
-        after :meth:`compute`: Pinocchio's joint placements applied to the frames' placements."""
-        rot = np.array([self.data.oMi[j].rotation for j in self._point_joints])
-        pos = np.array([self.data.oMi[j].translation for j in self._point_joints])
-        return pos[self._point_joint_index] + np.einsum("nab,nb->na", rot[self._point_joint_index], self._point_local)
+        return geometry.jx_jq(self.geometry, x, self.inverse_geometry(x))
 
     def frame_position(self, name: str) -> np.ndarray:
-        """World position (3,) of a named frame after :meth:`compute` (or forwardKinematics +
-        updateFramePlacements)."""
+        """World position (3,) of a named frame after Pinocchio's forward kinematics and
+        ``updateFramePlacements`` on :attr:`data`."""
+        if name not in self.frames:
+            raise ParameterError(f"no frame named {name!r}")
         return self.data.oMf[self.frames[name]].translation.copy()
 
     # ---------------------------------------------------------------- statics
@@ -340,18 +546,23 @@ class H4:
         From Pinocchio's generalized gravity ``g(q)`` (nv) and the closure Jacobians: with
         ``v = S q_dot`` (:meth:`passive_map`), virtual work gives ``tau = S^T g(q)``; this is the
         same as eliminating the closure forces ``lambda`` from ``g = tau_full + Jc^T lambda``.
+
+        Args:
+            gravity: (3,) m/s^2, default the model's (0, 0, -9.81).
         """
-        q = self.configuration(pose)
         if gravity is not None:
-            saved = self.model.gravity.linear.copy()
-            self.model.gravity.linear = np.asarray(gravity, float)
+            gv = np.asarray(gravity, dtype=float) if np.ndim(gravity) else np.array([np.nan])
+            if gv.shape != (3,) or not np.all(np.isfinite(gv)):
+                raise ParameterError(f"gravity must be a finite vector of 3 numbers (m/s^2), got {gravity!r}")
+        q = self.configuration(pose)
+        saved = self.model.gravity.linear.copy()
+        if gravity is not None:
+            self.model.gravity.linear = gv
         try:
             g = pin.computeGeneralizedGravity(self.model, self.data, q)
-            self.compute(q)
-            return self.passive_map().T @ g
+            return self.passive_map(q).T @ g
         finally:
-            if gravity is not None:
-                self.model.gravity.linear = saved
+            self.model.gravity.linear = saved
 
     def potential_energy(self, pose: np.ndarray) -> float:
         """Gravitational potential energy (J) of the assembled robot at ``pose``, from Pinocchio."""
@@ -362,6 +573,38 @@ class H4:
                 f"closures={len(self.constraint_models)})")
 
 
+def _universal_angles(e1: np.ndarray, e2: np.ndarray, p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angles (alpha, beta) with ``Rot(e1, alpha) Rot(e2, beta) p = t`` for each row (Paden-Kahan
+    subproblem 2: two rotations about axes through one point), the branch with the smaller
+    |beta|. ``|p| = |t|``; axes are unit, not parallel."""
+    c12 = np.sum(e1 * e2, axis=1)
+    e1t, e2p = np.sum(e1 * t, axis=1), np.sum(e2 * p, axis=1)
+    den = 1.0 - c12**2
+    a = (e1t - c12 * e2p) / den
+    b = (e2p - c12 * e1t) / den
+    n = geometry.cross(e1, e2)
+    g2 = (np.sum(p * p, axis=1) - a * a - b * b - 2 * a * b * c12) / np.sum(n * n, axis=1)
+    gam = np.sqrt(np.maximum(g2, 0.0))
+    best = None
+    for s in (1.0, -1.0):
+        c = a[:, None] * e1 + b[:, None] * e2 + (s * gam)[:, None] * n
+        beta = _angle_about(e2, p, c)
+        alpha = _angle_about(e1, c, t)
+        if best is None:
+            best = (alpha, beta)
+        else:
+            pick = np.abs(beta) < np.abs(best[1])
+            best = (np.where(pick, alpha, best[0]), np.where(pick, beta, best[1]))
+    return best  # type: ignore[return-value]
+
+
+def _angle_about(axis: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Angle of the rotation about ``axis`` taking x to y (their parts normal to the axis)."""
+    xp = x - axis * np.sum(axis * x, axis=1, keepdims=True)
+    yp = y - axis * np.sum(axis * y, axis=1, keepdims=True)
+    return np.arctan2(np.sum(axis * geometry.cross(xp, yp), axis=1), np.sum(xp * yp, axis=1))
+
+
 def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """``r[n] x cols[n, :, c]`` for every n and column c: (n, 3) x (n, 3, m) -> (n, 3, m)."""
     rx, ry, rz = (r[:, i, None] for i in range(3))
@@ -369,4 +612,4 @@ def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return np.stack([ry * cz - rz * cy, rz * cx - rx * cz, rx * cy - ry * cx], axis=1)
 
 
-__all__ = ["H4", "load", "urdf_dir", "variant_path", "LEG_LATERAL"]
+__all__ = ["H4", "Kinematics", "load", "urdf_dir", "variant_path"]

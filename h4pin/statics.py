@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from h4pin import geometry
-from h4pin.params import LEG_LATERAL, H4Params
+from h4pin.model import H4Geometry
 
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -29,24 +29,30 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def bar_forces(params: H4Params, pose: np.ndarray) -> np.ndarray:
+def _pose_points(g: H4Geometry, pose: np.ndarray) -> geometry.Points:
+    x = geometry.as_pose(pose)
+    sol = geometry.solve(g, x, check=False)
+    geometry.raise_for_status(sol.status, sol.detail, batch=False)
+    return geometry.points(g, sol.state)
+
+
+def bar_forces(g: H4Geometry, pose: np.ndarray) -> np.ndarray:
     """Bar tensions per unit external load, (8, 8): ``f_b = Lambda Gamma_ext`` (N per N or N.m).
 
     Solved from the equilibrium of the central bar and the two lateral bars (moments about the
     world origin). Bar ij (n = 2(i-1) + j-1), in tension f, pulls its plate end B_ij towards A_ij.
     """
-    x = geometry.as_poses(pose)
-    q = geometry.inverse_geometry(params, x)
-    pts = geometry.points(params, x, q)
+    pts = _pose_points(g, pose)
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     bij = pts.Bij.reshape(8, 3)
-    # Unknowns: f (8) | F_1 (3), M_1xy (2) | F_2 (3), M_2xy (2).  F_k, M_k act on lateral bar k,
+    # Unknowns: f (8) | F_1 (3), M_1 normal to v_1 (2) | F_2 (3), M_2 normal to v_2 (2).  F_k, M_k act on lateral bar k,
     # minus them on the central bar. Rows: central force, central moment, lateral 1 (6), lateral 2 (6).
     a = np.zeros((18, 18))
     rhs = np.zeros((18, 8))
-    e_xy = np.eye(3)[:, :2]
     for k in range(2):
+        vk = pts.v[k]
+        e_xy = np.linalg.svd(vk[None, :])[2][1:].T  # two unit vectors normal to the joint axis
         col_f, col_m = 8 + 5 * k, 11 + 5 * k
         ck = pts.C[k]
         a[0:3, col_f:col_f + 3] = -np.eye(3)  # central: sum of forces
@@ -56,12 +62,12 @@ def bar_forces(params: H4Params, pose: np.ndarray) -> np.ndarray:
         a[rows.start:rows.start + 3, col_f:col_f + 3] = np.eye(3)
         a[rows.start + 3:rows.stop, col_f:col_f + 3] = _skew(ck)
         a[rows.start + 3:rows.stop, col_m:col_m + 2] = e_xy
-        for n in np.flatnonzero(np.repeat(LEG_LATERAL, 2) == k):
+        for n in np.flatnonzero(g.lat == k):
             a[rows.start:rows.start + 3, n] = -w[n]  # bar pulls B towards A
             a[rows.start + 3:rows.stop, n] = -np.cross(bij[n], w[n])
-        # Joint torque t_k: +t_k z on lateral bar k, -t_k z on the central bar.
-        rhs[rows.start + 5, 6 + k] = -1.0
-        rhs[5, 6 + k] = 1.0
+        # Joint torque t_k: +t_k v_k on lateral bar k, -t_k v_k on the central bar.
+        rhs[rows.start + 3:rows.stop, 6 + k] = -vk
+        rhs[3:6, 6 + k] = vk
     # External F, T at D on the central bar: F + ..., T + D x F + ... = 0.
     rhs[0:3, 0:3] = -np.eye(3)
     rhs[3:6, 0:3] = -_skew(pts.D)
@@ -69,7 +75,7 @@ def bar_forces(params: H4Params, pose: np.ndarray) -> np.ndarray:
     return np.linalg.solve(a, rhs)[:8]
 
 
-def spring_loads(params: H4Params, pose: np.ndarray) -> dict[str, np.ndarray]:
+def spring_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     """Load of every spring per unit Gamma_ext: ``{"control", "bending", "torsion"}`` (4, 8) in
     N.m per unit load, ``"tension"`` (8, 8) in N per unit load.
 
@@ -77,10 +83,8 @@ def spring_loads(params: H4Params, pose: np.ndarray) -> dict[str, np.ndarray]:
     bending springs carry the moment of these forces about the actuator axis (u_i through P_i),
     the torsion spring their moment about the forearm axis (through A_i, along P_i -> A_i).
     """
-    x = geometry.as_poses(pose)
-    q = geometry.inverse_geometry(params, x)
-    pts = geometry.points(params, x, q)
-    f = bar_forces(params, x)
+    pts = _pose_points(g, pose)
+    f = bar_forces(g, pose)
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     aij = pts.Aij.reshape(8, 3)
@@ -90,17 +94,18 @@ def spring_loads(params: H4Params, pose: np.ndarray) -> dict[str, np.ndarray]:
         i = n // 2
         force = np.outer(w[n], f[n])  # (3, 8): force on the forearm per unit load
         e = (pts.A[i] - pts.P[i]) / np.linalg.norm(pts.A[i] - pts.P[i])
-        axis_moment[i] += params.U[:, i] @ np.cross(aij[n] - pts.P[i], force.T).T
+        axis_moment[i] += g.u[i] @ np.cross(aij[n] - pts.P[i], force.T).T
         twist[i] += e @ np.cross(aij[n] - pts.A[i], force.T).T
     return {"control": axis_moment, "bending": axis_moment, "torsion": twist, "tension": f}
 
 
-def compliance_terms(params: H4Params, pose: np.ndarray) -> dict[str, np.ndarray]:
-    """The four terms of the compliance by unit loads, ``c_s sum g_s g_s^T``, each (8, 8), SI."""
-    c = params.compliances()
-    return {t: c[t] * (g.T @ g) for t, g in spring_loads(params, pose).items()}
+def compliance_terms(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
+    """The four terms of the compliance by unit loads, ``sum_s c_s g_s g_s^T`` over the springs
+    of each family (each with its own compliance), each (8, 8), SI."""
+    c = g.compliances()
+    return {t: (load.T * c[t]) @ load for t, load in spring_loads(g, pose).items()}
 
 
-def compliance_matrix(params: H4Params, pose: np.ndarray) -> np.ndarray:
+def compliance_matrix(g: H4Geometry, pose: np.ndarray) -> np.ndarray:
     """Compliance (8, 8) by the statics route; equals the ``consistent`` model of eq. 30."""
-    return sum(compliance_terms(params, pose).values())
+    return sum(compliance_terms(g, pose).values())

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The stiffness model of Company, Pierrot and Fauroux (ICRA 2005), section IV, on Pinocchio.
+"""The stiffness model of Company, Pierrot and Fauroux (ICRA 2005): eq. 30, and the compliance API.
 
 :func:`compliance` gives the 8x8 compliance matrix ``K`` of eq. 30, ``dtp = K Gamma_ext``, with
 
@@ -9,275 +9,95 @@
 * ``Gamma_ext = [F, T, t_1, t_2]`` (eq. 16): force and torque on the central bar at D and the
   torques on the two revolute joints (N, N.m).
 
-``K`` is the sum of four terms kept apart: ``control`` (actuators, eq. 12), ``bending``
-(forearms, eq. 15), ``torsion`` (forearms, eq. 23) and ``tension`` (bars, eq. 27).
+``K`` is the sum of four terms, kept apart on request: ``control`` (actuators, eq. 12),
+``bending`` (forearms, eq. 15), ``torsion`` (forearms, eq. 23) and ``tension`` (bars, eq. 27).
+Every spring has its own compliance (per actuator, forearm and bar, read from the URDF).
 
-Two models, side by side:
+Two models, side by side (``docs/errata.md``):
 
-* ``"paper"``: eq. 30 as printed, with errata 1-3 of H4-NOTES fixed (dim of d_epsilon is 32, not
-  34; M1 uses t_ij per bar; eq. 16's displacement set is eq. 3's).
+* ``"paper"``: eq. 30 as printed, with errata 1-3 fixed.
 * ``"consistent"``: erratum 4 fixed too. As printed, ``R`` keeps only F and T_z and drops the
-  load that t_1, t_2 put on the actuators (at a rigid pose d_omega_k = -d_theta). Here
-  ``J^T R`` is replaced by ``(M1^-1 M2 M3)^T``, i.e. R[3, 6] = R[3, 7] = -1 (0-based). K is then
-  exactly symmetric and equals an independent Newton-Euler statics route
-  (:mod:`h4pin.statics`). Both models agree on the translational block and on the F, T columns.
+  load that t_1, t_2 put on the actuators. Here ``J^T R`` is replaced by ``(M1^-1 M2 M3)^T``.
+  K is then exactly symmetric and equals an independent Newton-Euler statics route
+  (:mod:`h4pin.statics`). Both models agree on the translational block and the F, T columns.
 
-Two paths share the matrix formulas (:func:`terms_from_matrices`): a single pose goes through
-Pinocchio (M1 rows are ``w_ij^T`` times the Pinocchio Jacobian of B_ij in plate coordinates, J
-from the closure Jacobians, M3 from the Jacobians of A_ij); a batch of poses uses the
-vectorised closed forms of eqs. 6, 8 and 11. A test keeps them equal.
+One verdict per pose, on every path: the pose is solved by :func:`h4pin.geometry.solve`
+(unreachable, joint limits, interfering bars), then refused as singular when the condition
+number of the scaled M1 (:func:`condition_number`) is not below :data:`SINGULAR_COND`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import Any
 
 import numpy as np
 
 from h4pin import geometry
-from h4pin.errors import PoseError, SingularPoseError, UnreachablePoseError
-from h4pin.geometry import Points
-from h4pin.params import LEG_LATERAL, H4Params
-from h4pin.robot import H4
+from h4pin.errors import ParameterError
+from h4pin.geometry import OK, SINGULAR, STATUS_NAMES
+from h4pin.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, from_points, n_matrix
+from h4pin.model import H4Geometry
 
 TERMS = ("control", "bending", "torsion", "tension")
 MODELS = ("paper", "consistent")
-#: cond(M1) above which a pose is reported singular (K would have lost > 6 of its 16 digits).
-SINGULAR_COND = 1e10
-_Z = np.array([0.0, 0.0, 1.0])
+METHODS = ("auto", "closed_form", "pinocchio")
+#: Status of a pose given as NaN (only with ``on_error="nan"``).
+INVALID = 5
+#: Singularity threshold on :func:`condition_number`. K's relative error is about
+#: cond x 1e-16, so an accepted pose's K is accurate to ~1e-7; tests/test_verdicts.py checks
+#: it against the independent statics route at the worst accepted poses.
+SINGULAR_COND = 1e9
 _BATCH_CHUNK = 8192
 
-#: The selection matrix R of eq. 30 (4x8): Gamma_d = [F, T_z] = R Gamma_ext.
-R_PAPER = np.zeros((4, 8))
-R_PAPER[[0, 1, 2, 3], [0, 1, 2, 5]] = 1.0
-#: R with erratum 4 fixed: t_1, t_2 load the actuators like -T_z (d_omega_k = -d_theta).
-R_CONSISTENT = R_PAPER.copy()
-R_CONSISTENT[3, 6:8] = -1.0
-
-#: M5 of eq. 27 (32x8): d_epsilon_tens = [0; dl].
-M5 = np.vstack([np.zeros((24, 8)), np.eye(8)])
+__all__ = ["MODELS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS", "Compliance", "Matrices", "compliance",
+           "condition_number", "eq30_terms", "matrices_at", "n_matrix"]
 
 
-class Matrices(NamedTuple):
-    """The paper's matrices at one pose (or a batch: leading shape ``...``), SI units.
+def condition_number(mats: Matrices) -> tuple[np.ndarray, np.ndarray]:
+    """M1^-1 and the 1-norm condition number of the scaled M1 (..., batched).
 
-    M1 (..., 8, 8) eq. 6; M2 (..., 8, 32) eq. 6; J (..., 4, 4) eq. 8; M3 (..., 32, 4) eq. 11;
-    M4 (..., 32, 8) eq. 23; M5 (32, 8) eq. 27; Jb (..., 8, 8) eq. 16; R (4, 8) eq. 30;
-    l (..., 8) the bar lengths l_ij.
+    Scaled so the number does not depend on units: each row divided by its bar length (unit
+    w_ij) and the five rotation columns divided by the mean bar length. Singular M1 give NaN
+    and inf.
     """
+    m1 = mats.M1
+    with np.errstate(all="ignore"):
+        try:
+            inv = np.linalg.inv(m1)
+        except np.linalg.LinAlgError:
+            inv = np.full_like(m1, np.nan)
+            flat, out = m1.reshape(-1, 8, 8), inv.reshape(-1, 8, 8)
+            for n, m in enumerate(flat):
+                try:
+                    out[n] = np.linalg.inv(m)
+                except np.linalg.LinAlgError:
+                    pass
+        L = np.mean(mats.l, axis=-1)[..., None]
+        col = np.concatenate([np.ones((*L.shape[:-1], 3)), np.repeat(1 / L, 5, axis=-1)], axis=-1)
+        ms = m1 / mats.l[..., :, None] * col[..., None, :]
+        ims = inv / col[..., :, None] * mats.l[..., None, :]
+        cond = np.abs(ms).sum(-2).max(-1) * np.abs(ims).sum(-2).max(-1)
+    return inv, np.where(np.isfinite(cond), cond, np.inf)
 
-    M1: np.ndarray
-    M2: np.ndarray
-    J: np.ndarray
-    M3: np.ndarray
-    M4: np.ndarray
-    M5: np.ndarray
-    Jb: np.ndarray
-    R: np.ndarray
-    l: np.ndarray
 
+def eq30_terms(inv: np.ndarray, mats: Matrices, comp: dict[str, np.ndarray], model: str) -> dict[str, np.ndarray]:
+    """The four terms of eq. 30, each (..., 8, 8), SI, from M1^-1 and the matrices.
 
-def _bars(pts: Points) -> tuple[np.ndarray, np.ndarray]:
-    """w_ij = B_ij - A_ij (..., 8, 3) and l_ij = |w_ij| (..., 8)."""
-    shape = pts.Bij.shape[:-3]
-    w = (pts.Bij - pts.Aij).reshape(*shape, 8, 3)
-    return w, np.linalg.norm(w, axis=-1)
-
-
-def m1_closed_form(pts: Points) -> np.ndarray:
-    """M1 of eq. 6 from cross products, (..., 8, 8).
-
-    Row n = (i, j): ``[w_ij^T, (w_ij x (s_k + t_ij))^T, (w_ij x t_ij).z in column 6 + k]`` with
-    s_k = D - C_k and t_ij = C_k - B_ij. Erratum 2: the print uses t_i per leg, which gives M1
-    rank 6; the bars of one leg need their own t_ij.
+    ``K = M1^-1 M2 (M3 C_c J^T R + M3 C_b J^T R + M4 C_t Jb^-1 + M5 C_l Jb^-1)`` with the
+    diagonal compliance matrices C of each spring family (per actuator, forearm, bar; the
+    print has one scalar each), ``Jb^-1 = diag(l) M1^-T`` and, for ``model="consistent"``,
+    ``J^T R`` replaced by ``(M1^-1 M2 M3)^T`` (erratum 4).
     """
-    w, _ = _bars(pts)
-    shape = w.shape[:-2]
-    bij = pts.Bij.reshape(*shape, 8, 3)
-    ck = np.repeat(pts.C[..., LEG_LATERAL, :], 2, axis=-2)
-    t = ck - bij
-    s_plus_t = pts.D[..., None, :] - bij
-    m1 = np.zeros((*shape, 8, 8))
-    m1[..., :3] = w
-    m1[..., 3:6] = geometry.cross(w, s_plus_t)
-    lat = np.repeat(LEG_LATERAL, 2)
-    m1[..., np.arange(8), 6 + lat] = geometry.cross(w, t)[..., 2]
-    return m1
-
-
-def m2(pts: Points) -> np.ndarray:
-    """M2 = [spar(w_ij^T), diag(l_ij)] of eq. 6, (..., 8, 32); d_epsilon = [da_11..da_42, dl_11..dl_42]."""
-    w, l = _bars(pts)
-    shape = w.shape[:-2]
-    out = np.zeros((*shape, 8, 32))
-    n = np.arange(8)
-    for c in range(3):
-        out[..., n, 3 * n + c] = w[..., c]
-    out[..., n, 24 + n] = l
-    return out
-
-
-def _per_bar_leg(array: np.ndarray) -> np.ndarray:
-    """(..., 4, 3) per leg -> (..., 8, 3) per bar."""
-    return np.repeat(array, 2, axis=-2)
-
-
-def m3_closed_form(pts: Points, params: H4Params) -> np.ndarray:
-    """M3 = [spar([(p_i1 x u_i)^T (p_i2 x u_i)^T]^T); 0] of eq. 11, (..., 32, 4).
-
-    p_ij = P_i - A_ij; a rotation dq_i of actuator i moves A_ij by (p_ij x u_i) dq_i.
-    """
-    shape = pts.Aij.shape[:-3]
-    p = (pts.P[:, None, :] - pts.Aij).reshape(*shape, 8, 3)
-    col = geometry.cross(p, _per_bar_leg(np.broadcast_to(params.U.T, (*shape, 4, 3))))
-    out = np.zeros((*shape, 32, 4))
-    for n in range(8):
-        out[..., 3 * n:3 * n + 3, n // 2] = col[..., n, :]
-    return out
-
-
-def n_matrix(pts: Points) -> np.ndarray:
-    """N of eq. 23, one 6x2 block per leg, (..., 4, 6, 2).
-
-    The printed N is garbled. Per leg, the reading that makes eqs. 22 and 23 agree in sign
-    (H4-NOTES) is ``N_i = [p_i1 x r_i; p_i2 x r_i] [(p_i1 x r_i).w_i, (p_i2 x r_i).w_i]``, with
-    p_ij = P_i - A_ij, r_i the unit vector A_i -> P_i and w_i the unit vector A_i -> B_i. A twist
-    of forearm i under bar forces f_i1, f_i2 moves A_i1, A_i2 by ``(r / (G I0)) N_i [f_i1, f_i2]``.
-    """
-    shape = pts.Aij.shape[:-3]
-    p = pts.P[:, None, :] - pts.Aij  # (..., 4, 2, 3)
-    r = pts.P - pts.A
-    r = r / np.linalg.norm(r, axis=-1, keepdims=True)
-    wl = pts.B - pts.A
-    wl = wl / np.linalg.norm(wl, axis=-1, keepdims=True)
-    pr = geometry.cross(p, r[..., None, :])  # (..., 4, 2, 3): p_ij x r_i
-    c = np.einsum("...ija,...ia->...ij", pr, wl)  # (..., 4, 2): (p_ij x r_i) . w_i
-    return (pr.reshape(*shape, 4, 6)[..., :, None] * c[..., None, :])
-
-
-def m4(pts: Points) -> np.ndarray:
-    """M4 = [spar(N); 0] of eq. 23, (..., 32, 8), with N from :func:`n_matrix`."""
-    n = n_matrix(pts)
-    out = np.zeros((*n.shape[:-3], 32, 8))
-    for i in range(4):
-        out[..., 6 * i:6 * i + 6, 2 * i:2 * i + 2] = n[..., i, :, :]
-    return out
-
-
-def jb_from_m1(m1: np.ndarray, l: np.ndarray) -> np.ndarray:
-    """Jb of eq. 16 (not given in the paper): by virtual work, ``Jb = M1^T diag(1/l_ij)``.
-
-    With f_b tension-positive, bar ij pulls the plate at B_ij towards A_ij; the plate's
-    equilibrium ``Gamma_ext = Jb f_b`` then follows from ``w_ij . db_ij = (M1 dtp)_ij``.
-    (Erratum 3: eq. 16 refers to eq. 8 for the displacement set; it means eq. 3.)
-    """
-    return np.swapaxes(m1, -1, -2) / l[..., None, :]
-
-
-def matrices_closed_form(params: H4Params, pose: np.ndarray, q: np.ndarray) -> Matrices:
-    """All the paper's matrices from the closed forms (vectorised over a batch of poses)."""
-    pts = geometry.points(params, pose, q)
-    M1 = m1_closed_form(pts)
-    _, l = _bars(pts)
-    return Matrices(M1, m2(pts), geometry.jacobian(params, pose, q), m3_closed_form(pts, params), m4(pts), M5,
-                    jb_from_m1(M1, l), R_PAPER, l)
-
-
-def points_from_pinocchio(h4: H4, xyz: np.ndarray | None = None) -> Points:
-    """The characteristic points from Pinocchio's frame placements (after ``h4.compute(q)``);
-    ``xyz``: :meth:`h4pin.H4.frame_points`, if already computed."""
-    xyz = h4.frame_points() if xyz is None else xyz
-    return Points(D=xyz[0], C=xyz[1:3], B=xyz[3:7], Bij=xyz[7:15].reshape(4, 2, 3), P=xyz[15:19], A=xyz[19:23],
-                  Aij=xyz[23:31].reshape(4, 2, 3))
-
-
-def matrices(h4: H4, pose: np.ndarray, q: np.ndarray | None = None) -> Matrices:
-    """All the paper's matrices at one pose, through Pinocchio.
-
-    * M1 (eq. 6): row n is ``w_ij^T JB_ij`` with JB_ij the Pinocchio Jacobian of frame B_ij in
-      plate coordinates dtp (:meth:`h4pin.H4.plate_jacobians`);
-    * J (eq. 8): from the closure Jacobians and the frame Jacobian of D (:meth:`h4pin.H4.jacobian`);
-    * M3 (eq. 11): rows of leg i are the Jacobians of frames A_i1, A_i2 w.r.t. actuator i;
-    * M2, M4, M5, Jb, R: formulas of eqs. 6, 23, 27, 16, 30 on the Pinocchio frame positions.
-
-    ``q`` (4,), the actuator angles of ``pose``, saves an inverse geometry when already known.
-
-    Raises:
-        UnreachablePoseError, SingularPoseError: as :func:`compliance`.
-    """
-    x = geometry.as_poses(pose)
-    if x.ndim != 1:
-        raise PoseError(f"matrices takes one pose (4,), got shape {x.shape}; use matrices_closed_form for a batch")
-    h4.compute(h4.configuration(x, q))
-    xyz = h4.frame_points()
-    pts = points_from_pinocchio(h4, xyz)
-    w, l = _bars(pts)
-    jb, ja = h4.plate_jacobians(xyz)
-    M1 = np.einsum("na,nab->nb", w, jb)
-    M3 = np.zeros((32, 4))
-    M3[:24] = ja.reshape(24, 4)
-    J = h4.plate_velocity_jacobian()
-    return Matrices(M1, m2(pts), J, M3, m4(pts), M5, jb_from_m1(M1, l), R_PAPER, l)
-
-
-def _inverse_m1(m1: np.ndarray, first_index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """M1^-1 and the 1-norm condition number of M1, batched; singular M1 give NaN and inf."""
-    good = np.ones(m1.shape[:-2], dtype=bool)
-    try:
-        inv = np.linalg.inv(m1)
-    except np.linalg.LinAlgError:
-        flat = m1.reshape(-1, 8, 8)
-        inv = np.full_like(flat, np.nan)
-        for n, m in enumerate(flat):
-            try:
-                inv[n] = np.linalg.inv(m)
-            except np.linalg.LinAlgError:
-                good.reshape(-1)[n] = False
-        inv = inv.reshape(m1.shape)
-    with np.errstate(invalid="ignore"):
-        cond = np.abs(m1).sum(-2).max(-1) * np.abs(inv).sum(-2).max(-1)
-    cond = np.where(good & np.isfinite(cond), cond, np.inf)
-    return inv, cond
-
-
-def terms_from_matrices(mats: Matrices, params: H4Params, model: str = "paper") -> dict[str, np.ndarray]:
-    """The four terms of eq. 30 from the paper's matrices, each (..., 8, 8), SI.
-
-    ``K = M1^-1 M2 ( (1/kc) M3 J^T R + r/(3EI) M3 J^T R + r/(G I0) M4 Jb^-1 + l/(Sb Eb) M5 Jb^-1 )``,
-    with ``Jb^-1 = diag(l) M1^-T`` and, for ``model="consistent"``, ``J^T R`` replaced by
-    ``(M1^-1 M2 M3)^T`` (erratum 4). The forearm terms carry the stressed fraction phi
-    (phi^3 for bending, phi for torsion; phi = 1 is the paper).
-
-    Raises:
-        SingularPoseError: cond(M1) > :data:`SINGULAR_COND` (the message gives it).
-    """
-    if model not in MODELS:
-        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
-    inv, cond = _inverse_m1(mats.M1)
-    if np.any(~(cond < SINGULAR_COND)):
-        n = int(np.argmax(~(cond < SINGULAR_COND).reshape(-1)))
-        raise SingularPoseError(
-            f"M1 is singular (cond = {cond.reshape(-1)[n]:.2e} > {SINGULAR_COND:.0e}): the plate has a "
-            "motion that no spring resists", n if mats.M1.ndim == 3 else None)
-    return _terms(inv, mats, params, model)
-
-
-def _terms(inv: np.ndarray, mats: Matrices, params: H4Params, model: str) -> dict[str, np.ndarray]:
-    c = params.compliances()
     ym2 = inv @ mats.M2
     g3 = ym2 @ mats.M3  # (..., 8, 4) = M1^-1 M2 M3
-    if model == "paper":
-        load = np.swapaxes(mats.J, -1, -2) @ mats.R
-    else:
-        load = np.swapaxes(g3, -1, -2)
-    actuator = g3 @ load
+    load = np.swapaxes(mats.J, -1, -2) @ mats.R if model == "paper" else np.swapaxes(g3, -1, -2)
     jb_inv = mats.l[..., :, None] * np.swapaxes(inv, -1, -2)
     return {
-        "control": c["control"] * actuator,
-        "bending": c["bending"] * actuator,
-        "torsion": c["torsion"] * (ym2 @ mats.M4 @ jb_inv),
-        "tension": c["tension"] * (ym2 @ mats.M5 @ jb_inv),
+        "control": (g3 * comp["control"]) @ load,
+        "bending": (g3 * comp["bending"]) @ load,
+        "torsion": (ym2 @ mats.M4 * np.repeat(comp["torsion"], 2)) @ jb_inv,
+        "tension": (ym2 @ mats.M5 * comp["tension"]) @ jb_inv,
     }
 
 
@@ -287,19 +107,26 @@ class Compliance:
 
     Attributes:
         matrix: (8, 8) K of eq. 30, dtp = K Gamma_ext, SI (m/N, rad/N, m/(N.m), rad/(N.m)).
-        terms: "control", "bending", "torsion", "tension": (8, 8) each, summing to ``matrix``.
+        terms: "control", "bending", "torsion", "tension": (8, 8) each, summing to ``matrix``;
+            ``None`` unless asked for (``compliance(..., terms=True)``, the default for one pose).
         pose: (4,) [x, y, z, theta] in m, rad.
         q: (4,) actuator angles in rad.
         model: "paper" or "consistent".
+        condition: condition number of the scaled M1 (how close to a singularity the pose is;
+            poses at or above :data:`SINGULAR_COND` are refused).
+        status: verdict code per pose (0 ok; 1 unreachable, 2 joint limits, 3 interfering bars,
+            4 singular, 5 not a finite pose; ``h4pin.geometry.STATUS_NAMES``).
         valid: (N,) bool for a batch computed with ``on_error="nan"`` (False rows are NaN);
             ``None`` otherwise.
     """
 
     matrix: np.ndarray
-    terms: dict[str, np.ndarray]
+    terms: dict[str, np.ndarray] | None
     pose: np.ndarray
     q: np.ndarray
     model: str
+    condition: np.ndarray | float
+    status: np.ndarray | int = 0
     valid: np.ndarray | None = None
 
     @property
@@ -308,105 +135,129 @@ class Compliance:
         return self.matrix[..., :3, :3]
 
     def deflection(self, load: np.ndarray) -> np.ndarray:
-        """dtp (8,) (or (N, 8)) for a load Gamma_ext (8,) or a force F (3,), SI."""
+        """dtp (8,) (or (N, 8)) for a load Gamma_ext (8,) or a force F (3,) at D, SI."""
+        return self.matrix @ as_load(load)
+
+
+def as_load(load: Any) -> np.ndarray:
+    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
+    try:
         g = np.asarray(load, dtype=float)
-        if g.shape == (3,):
-            g = np.r_[g, np.zeros(5)]
-        if g.shape != (8,):
-            raise ValueError(f"load must be a force F (3,) or Gamma_ext = [F, T, t1, t2] (8,), got shape {g.shape}")
-        return self.matrix @ g
+    except (TypeError, ValueError):
+        raise ParameterError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
+    if g.shape == (3,):
+        g = np.r_[g, np.zeros(5)]
+    if g.shape != (8,) or not np.all(np.isfinite(g)):
+        raise ParameterError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
+                             f"got {load!r}")
+    return g
 
 
-def compliance(h4: H4, pose: np.ndarray, model: str = "paper", *, on_error: str = "raise",
-               method: str = "auto") -> Compliance:
+def matrices_at(h4, pose: np.ndarray) -> Matrices:
+    """All the paper's matrices at one pose, through Pinocchio (:func:`h4pin.matrices.from_kinematics`).
+
+    Raises:
+        UnreachablePoseError (and subclasses): as :func:`compliance`.
+    """
+    return from_kinematics(h4.kinematics(pose))
+
+
+def _check_options(model: str, on_error: str, method: str) -> None:
+    if model not in MODELS:
+        raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
+    if on_error not in ("raise", "nan"):
+        raise ParameterError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+
+
+def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "raise", method: str = "auto",
+               terms: bool | None = None) -> Compliance:
     """Compliance matrix K of eq. 30 at a pose or a batch of poses.
 
     Args:
         h4: The robot (:func:`h4pin.load`).
         pose: (4,) or (N, 4) poses [x, y, z, theta] in m, rad.
         model: ``"paper"`` (eq. 30 as printed, errata 1-3 fixed) or ``"consistent"``
-            (erratum 4 fixed too, K symmetric). See the module docstring.
-        on_error: ``"raise"``: the first unreachable or singular pose raises
-            :class:`h4pin.UnreachablePoseError` or :class:`h4pin.SingularPoseError` naming its
-            index. ``"nan"``: bad poses give NaN matrices and ``valid`` is False for them.
-        method: ``"pinocchio"`` (single pose through Pinocchio's Jacobians), ``"closed_form"``
-            (vectorised), or ``"auto"`` (Pinocchio for one pose, closed form for a batch).
+            (erratum 4 fixed too, K symmetric).
+        on_error: ``"raise"``: the first pose the robot cannot take, or a singular one, raises
+            its typed error (:class:`h4pin.UnreachablePoseError` and subclasses,
+            :class:`h4pin.SingularPoseError`) naming its index. ``"nan"``: such poses (and NaN
+            poses) give NaN matrices, ``valid`` False and their ``status``.
+        method: ``"pinocchio"`` (Pinocchio's frame Jacobians, one pose at a time),
+            ``"closed_form"`` (vectorised closed forms), ``"auto"`` (closed form).
+        terms: Keep the four terms (default: yes for one pose, no for a batch).
 
     Returns:
         A :class:`Compliance`.
     """
-    if model not in MODELS:
-        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
-    if on_error not in ("raise", "nan"):
-        raise ValueError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
-    if method not in ("auto", "pinocchio", "closed_form"):
-        raise ValueError(f"method must be 'auto', 'pinocchio' or 'closed_form', got {method!r}")
-    x = geometry.as_poses(pose)
+    _check_options(model, on_error, method)
+    raw = np.asarray(pose, dtype=float) if on_error == "nan" else None
+    if raw is not None and raw.ndim == 2 and raw.shape[-1] == 4:
+        finite = np.all(np.isfinite(raw), axis=1)
+        x = raw
+    else:
+        x = geometry.as_poses(pose)
+        finite = np.ones(len(x) if x.ndim == 2 else 1, dtype=bool)
     single = x.ndim == 1
-    if method == "auto":
-        method = "pinocchio" if single else "closed_form"
     xb = x[None] if single else x
-    if method == "pinocchio" and single and on_error == "raise":
-        q = h4.inverse_geometry(x)
-        terms = terms_from_matrices(matrices(h4, x, q), h4.params, model)
-        return Compliance(sum(terms.values()), terms, x, q, model, None)
-    if method == "pinocchio":
-        return _pinocchio_batch(h4, xb, model, on_error, single)
-    return _closed_form_batch(h4.params, xb, model, on_error, single)
-
-
-def _pack(terms: dict[str, np.ndarray], x: np.ndarray, q: np.ndarray, model: str, valid: np.ndarray | None,
-          single: bool) -> Compliance:
-    matrix = sum(terms.values())
+    keep = single if terms is None else bool(terms)
+    g: H4Geometry = h4.geometry
+    n = len(xb)
+    status = np.full(n, INVALID, dtype=np.int8)
+    detail: list[str | None] = [f"pose #{k} is not finite: {xb[k]}" for k in range(n)]
+    q = np.full((n, 4), np.nan)
+    cond = np.full(n, np.nan)
+    matrix = np.full((n, 8, 8), np.nan)
+    out_terms = {t: np.full((n, 8, 8), np.nan) for t in TERMS} if keep else None
+    idx_all = np.flatnonzero(finite)
+    comp = g.compliances()
+    for start in range(0, len(idx_all), _BATCH_CHUNK):
+        idx = idx_all[start:start + _BATCH_CHUNK]
+        sol = geometry.solve(g, xb[idx])
+        status[idx] = sol.status
+        for k, msg in zip(idx, sol.detail, strict=True):
+            detail[k] = msg
+        ok = np.flatnonzero(sol.status == OK)
+        if ok.size == 0:
+            continue
+        sel = idx[ok]
+        q[sel] = sol.state.q[ok]
+        if method == "pinocchio":
+            mats_list = [from_kinematics(h4.kinematics(xb[k])) for k in sel]
+            mats = Matrices(*(np.stack([getattr(m, f) for m in mats_list]) if f not in ("M5", "R")
+                              else getattr(mats_list[0], f) for f in Matrices._fields))
+        else:
+            state = geometry.PlateState(*(a[ok] for a in sol.state))
+            mats = from_points(g, geometry.points(g, state))
+        inv, c = condition_number(mats)
+        cond[sel] = c
+        regular = c < SINGULAR_COND
+        for k, cc in zip(sel[~regular], c[~regular], strict=True):
+            status[k] = SINGULAR
+            detail[k] = (f"M1 is singular (cond = {cc:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion that "
+                         "no spring resists")
+        if not np.any(regular):
+            continue
+        sub = Matrices(*(getattr(mats, f)[regular] if f not in ("M5", "R") else getattr(mats, f)
+                         for f in Matrices._fields))
+        part = eq30_terms(inv[regular], sub, comp, model)
+        matrix[sel[regular]] = sum(part.values())
+        if out_terms is not None:
+            for t in TERMS:
+                out_terms[t][sel[regular]] = part[t]
+    if on_error == "raise":
+        geometry.raise_for_status(status, detail, batch=not single)
+    valid = status == OK
     if single:
-        return Compliance(matrix[0], {k: v[0] for k, v in terms.items()}, x[0], q[0], model, None)
-    return Compliance(matrix, terms, x, q, model, valid)
+        if on_error == "raise":
+            return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()},
+                              x, q[0], model, float(cond[0]), int(status[0]), None)
+        return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()}, x,
+                          q[0], model, float(cond[0]), int(status[0]), np.array(valid[0]))
+    return Compliance(matrix, out_terms, x, q, model, cond, status, None if on_error == "raise" else valid)
 
 
-def _pinocchio_batch(h4: H4, x: np.ndarray, model: str, on_error: str, single: bool) -> Compliance:
-    terms = {t: np.full((len(x), 8, 8), np.nan) for t in TERMS}
-    q = np.full((len(x), 4), np.nan)
-    valid = np.zeros(len(x), dtype=bool)
-    for n, xn in enumerate(x):
-        try:
-            q[n] = h4.inverse_geometry(xn)
-            one = terms_from_matrices(matrices(h4, xn, q[n]), h4.params, model)
-        except (UnreachablePoseError, SingularPoseError) as exc:
-            if on_error == "raise":
-                raise type(exc)(str(exc), None if single else n) from None
-            continue
-        for t in TERMS:
-            terms[t][n] = one[t]
-        valid[n] = True
-    return _pack(terms, x, q, model, None if on_error == "raise" else valid, single)
-
-
-def _closed_form_batch(params: H4Params, x: np.ndarray, model: str, on_error: str, single: bool) -> Compliance:
-    q = geometry.inverse_geometry(params, x, on_error="nan")
-    reachable = np.all(np.isfinite(q), axis=-1)
-    if on_error == "raise" and not np.all(reachable):
-        n = int(np.argmax(~reachable))
-        try:
-            geometry.inverse_geometry(params, x[n])
-        except UnreachablePoseError as exc:
-            raise UnreachablePoseError(str(exc), None if single else n) from None
-    terms = {t: np.full((len(x), 8, 8), np.nan) for t in TERMS}
-    valid = reachable.copy()
-    for start in range(0, len(x), _BATCH_CHUNK):
-        sl = slice(start, start + _BATCH_CHUNK)
-        idx = np.flatnonzero(reachable[sl]) + start
-        if idx.size == 0:
-            continue
-        mats = matrices_closed_form(params, x[idx], q[idx])
-        inv, cond = _inverse_m1(mats.M1)
-        ok = cond < SINGULAR_COND
-        if on_error == "raise" and not np.all(ok):
-            n = int(idx[np.argmax(~ok)])
-            raise SingularPoseError(
-                f"M1 is singular (cond = {cond[np.argmax(~ok)]:.2e} > {SINGULAR_COND:.0e}): the plate has a "
-                "motion that no spring resists", None if single else n)
-        valid[idx[~ok]] = False
-        part = _terms(inv, mats, params, model)
-        for t in TERMS:
-            terms[t][idx[ok]] = part[t][ok]
-    return _pack(terms, x, q, model, None if on_error == "raise" else valid, single)
+def describe_status(status: int) -> str:
+    """Human name of a verdict code (:attr:`Compliance.status`)."""
+    return STATUS_NAMES.get(int(status), "not a finite pose" if int(status) == INVALID else "unknown")

@@ -1,26 +1,28 @@
 # SPDX-License-Identifier: Apache-2.0
-"""H4 parameters <-> URDF with loop closures.
+"""H4 URDF: writer of nominal robots, and reader of the custom elements of any H4 URDF.
 
-:func:`to_urdf` writes the kinematic tree of an H4 as plain URDF, plus two custom elements that
-make one file a complete description of a variant:
+:func:`to_urdf` writes the kinematic tree of an H4 described by :class:`h4pin.H4Params` as plain
+URDF, plus custom elements that make one file a complete model (Pinocchio and yourdfpy accept and
+ignore them; h4pin reads them with an XML parser, :func:`parse`):
 
 * eight ``<constraint type="point">`` elements, one per bar, closing bar ``ij`` on its lateral
   bar at ``B_ij``. Their form (``<parent link>``, ``<parent_origin>``, ``<child link>``,
   ``<child_origin>``) follows the ``<constraint>`` element proposed to ROS urdfdom;
-* one ``<h4_parameters>`` element holding every field of :class:`h4pin.H4Params` (geometry and
-  the spring data kc, E, I, G, I0, Sb, Eb) with 17 significant digits, so
-  ``params_from_urdf(to_urdf(p)) == p`` exactly.
+* spring data next to the element it belongs to: ``<h4_actuator kc=.../>`` inside each actuated
+  ``<joint>``, ``<h4_forearm E= I= G= I0= stressed_fraction=/>`` inside each forearm ``<link>``,
+  ``<h4_bar Sb= Eb=/>`` inside each bar ``<link>``. Editing a joint, or copying a leg, takes its
+  data along, and a tree cannot disagree with a table kept elsewhere;
+* ``<h4pin format="2" units="SI"/>``: the version of these conventions and the units.
 
-Pinocchio and yourdfpy both accept (and ignore) the custom elements; h4pin reads them with an
-XML parser. :func:`params_from_urdf` also checks that the tree agrees with ``<h4_parameters>``
-and raises :class:`h4pin.MalformedURDFError` naming what is missing or inconsistent.
+Geometry is never read from a side element: :func:`h4pin.load` takes every length and position
+from the tree and the closures (:mod:`h4pin.model`).
 
-The tree (reference configuration: all joint angles zero, world-aligned frames):
+The tree written here (reference configuration: all joint angles zero, world-aligned frames):
 
 * ``base_link`` with the actuators drawn at ``P_i``;
 * per leg i: revolute ``actuator_i`` (axis u_i at P_i) -> ``forearm_i`` (along a_i = u_i x z,
-  length r); per bar ij a universal joint made of two revolutes ``bar_ij_u1`` (axis u_i) and
-  ``bar_ij_u2`` (axis a_i) at A_ij -> ``bar_ij``, hanging along -z with its end at (0, 0, -l).
+  length r_i); per bar ij a universal joint made of two revolutes ``bar_ij_u1`` (axis u_i) and
+  ``bar_ij_u2`` (axis a_i) at A_ij -> ``bar_ij``, hanging along -z with its end at (0, 0, -l_ij).
   (Pinocchio's URDF parser has no ball joint; the spin of a bar about its axis is idle.)
 * the travelling plate as a floating subtree: ``floating`` joint ``plate`` -> ``central_bar``
   (origin D), and revolute-z joints ``lateral_k`` at C_k -> ``lateral_bar_k``.
@@ -33,21 +35,24 @@ section Sb; the plate is aluminium rods; each universal-joint cross is a 20 g st
 
 from __future__ import annotations
 
+import dataclasses
+import os
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from h4pin.errors import MalformedURDFError
+from h4pin.model import ACTUATOR_LIMITS, LATERAL_LIMITS
 from h4pin.params import LEG_LATERAL, H4Params
 
-FORMAT_VERSION = "1"
+FORMAT_VERSION = "2"
 RHO_ALUMINIUM = 2700.0  # kg/m^3
 RHO_CARBON = 1600.0  # kg/m^3
 CROSS_MASS = 0.02  # kg
 BAR_RADIUS = 5e-3  # m, outer radius of the bar tubes (drawing and inertia)
 PLATE_RADIUS = 8e-3  # m, radius of the plate rods (drawing and inertia)
-ACTUATOR_LIMITS = (-1.0, 2.0)  # rad, joint limits written for the actuators
 
 
 def leg_names(i: int) -> dict[str, str]:
@@ -118,8 +123,10 @@ class _Body:
         if mass > 0:
             self.masses.append((mass, np.asarray(c, float), 0.4 * mass * radius**2 * np.eye(3)))
 
-    def xml(self, name: str, material: str) -> str:
+    def xml(self, name: str, material: str, extra: str = "") -> str:
         out = [f'  <link name="{name}">']
+        if extra:
+            out.append(f"    {extra}")
         if self.masses:
             m = sum(mi for mi, _, _ in self.masses)
             com = sum(mi * ci for mi, ci, _ in self.masses) / m
@@ -152,13 +159,15 @@ class _Body:
 
 
 def _joint(name: str, kind: str, parent: str, child: str, xyz: np.ndarray, axis: np.ndarray | None = None,
-           limits: tuple[float, float] | None = None) -> str:
+           limits: tuple[float, float] | None = None, extra: str = "") -> str:
     out = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
            f'    <origin xyz="{_vec(xyz)}" rpy="0 0 0"/>']
     if axis is not None:
         out.append(f'    <axis xyz="{_vec(axis)}"/>')
     if limits is not None:
         out.append(f'    <limit lower="{_num(limits[0])}" upper="{_num(limits[1])}" effort="1000" velocity="20"/>')
+    if extra:
+        out.append(f"    {extra}")
     out.append("  </joint>")
     return "\n".join(out)
 
@@ -176,10 +185,8 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
     p = params
     a = p.forearm_dirs.T
     u = p.U.T
-    h = p.half_width
     signs = (1.0, -1.0)
-    forearm_radius = (4.0 * p.I / np.pi) ** 0.25  # solid round section with second moment I
-    bar_inner = np.sqrt(max(BAR_RADIUS**2 - p.Sb / np.pi, 0.0))
+    bar_inner = np.sqrt(np.maximum(BAR_RADIUS**2 - p.Sb / np.pi, 0.0))
     parts: list[str] = []
 
     base = _Body()
@@ -188,28 +195,34 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
     parts.append(base.xml("base_link", "frame"))
     for i in range(4):
         n = leg_names(i + 1)
+        h, r = p.half_width[i], p.r[i]
+        forearm_radius = (4.0 * p.I[i] / np.pi) ** 0.25  # solid round section with second moment I
         parts.append(_frame(n["P"], "base_link", p.P[:, i]))
         forearm = _Body()
-        forearm.rod(np.zeros(3), p.r * a[i], forearm_radius, RHO_ALUMINIUM)
-        forearm.rod(p.r * a[i] - h * u[i], p.r * a[i] + h * u[i], forearm_radius * 0.6, RHO_ALUMINIUM)
+        forearm.rod(np.zeros(3), r * a[i], forearm_radius, RHO_ALUMINIUM)
+        forearm.rod(r * a[i] - h * u[i], r * a[i] + h * u[i], forearm_radius * 0.6, RHO_ALUMINIUM)
         for s in signs:
-            forearm.ball(p.r * a[i] + s * h * u[i], p.ball_radius)
-        parts.append(forearm.xml(n["forearm"], "forearm"))
-        parts.append(_joint(n["joint"], "revolute", "base_link", n["forearm"], p.P[:, i], u[i], ACTUATOR_LIMITS))
-        parts.append(_frame(n["A"], n["forearm"], p.r * a[i]))
+            forearm.ball(r * a[i] + s * h * u[i], p.ball_radius)
+        spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
+                  f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"/>')
+        parts.append(forearm.xml(n["forearm"], "forearm", spring))
+        parts.append(_joint(n["joint"], "revolute", "base_link", n["forearm"], p.P[:, i], u[i], ACTUATOR_LIMITS,
+                            f'<h4_actuator kc="{_num(p.kc[i])}"/>'))
+        parts.append(_frame(n["A"], n["forearm"], r * a[i]))
         for j, s in enumerate(signs):
             b = bar_names(i + 1, j + 1)
-            anchor = p.r * a[i] + s * h * u[i]
+            nb = 2 * i + j
+            anchor = r * a[i] + s * h * u[i]
             parts.append(_frame(b["A"], n["forearm"], anchor))
             cross = _Body()
             cross.ball(np.zeros(3), p.ball_radius * 0.5, CROSS_MASS)
             parts.append(cross.xml(b["cross"], "joint"))
             parts.append(_joint(b["u1"], "revolute", n["forearm"], b["cross"], anchor, u[i], (-np.pi, np.pi)))
             bar = _Body()
-            bar.rod(np.zeros(3), np.array([0.0, 0.0, -p.l]), BAR_RADIUS, RHO_CARBON, bar_inner)
-            parts.append(bar.xml(b["bar"], "bar"))
+            bar.rod(np.zeros(3), np.array([0.0, 0.0, -p.l[nb]]), BAR_RADIUS, RHO_CARBON, bar_inner[nb])
+            parts.append(bar.xml(b["bar"], "bar", f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'))
             parts.append(_joint(b["u2"], "revolute", b["cross"], b["bar"], np.zeros(3), a[i], (-np.pi, np.pi)))
-            parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l])))
+            parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l[nb]])))
 
     central = _Body()
     central.rod(p.DC[:, 0], p.DC[:, 1], PLATE_RADIUS, RHO_ALUMINIUM)
@@ -229,7 +242,7 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
                 lateral.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
         parts.append(lateral.xml(n["link"], "plate"))
         parts.append(_joint(n["joint"], "revolute", "central_bar", n["link"], p.DC[:, k], np.array([0.0, 0.0, 1.0]),
-                            (-np.pi, np.pi)))
+                            LATERAL_LIMITS))
         parts.append(_frame(n["C"], n["link"], np.zeros(3)))
         for i in np.flatnonzero(LEG_LATERAL == k):
             parts.append(_frame(leg_names(i + 1)["B"], n["link"], p.DB[:, i] - p.DC[:, k]))
@@ -244,7 +257,7 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
             closures.append(
                 f'  <constraint name="{b["closure"]}" type="point">\n'
                 f'    <parent link="{b["bar"]}"/>\n'
-                f'    <parent_origin xyz="0 0 {_num(-p.l)}"/>\n'
+                f'    <parent_origin xyz="0 0 {_num(-p.l[2 * i + j])}"/>\n'
                 f'    <child link="{lateral_names(k + 1)["link"]}"/>\n'
                 f'    <child_origin xyz="{_vec(bij[i, j] - p.DC[:, k])}"/>\n'
                 "  </constraint>"
@@ -254,29 +267,58 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
                  "joint": "0.6 0.6 0.6 1", "plate": "0.20 0.45 0.80 1"}
     header = [
         '<?xml version="1.0"?>',
-        f"<!-- H4 parallel robot '{name}', written by h4pin.urdf.to_urdf: do not edit by hand. -->",
+        f"<!-- H4 parallel robot '{name}', written by h4pin.urdf.to_urdf (edit freely: the file is the model). -->",
         f'<robot name="{name}">',
         *(f'  <material name="{m}"><color rgba="{c}"/></material>' for m, c in materials.items()),
     ]
-    return "\n".join([*header, *parts, *closures, _parameters_xml(p), "</robot>", ""])
+    marker = f'  <h4pin format="{FORMAT_VERSION}" units="SI"/>'
+    return "\n".join([*header, marker, *parts, *closures, "</robot>", ""])
 
 
-_LEG_FIELDS = ("P", "U", "DB")
-_DIMENSIONS = ("r", "l", "half_width", "ball_radius")
-_SPRINGS = ("kc", "E", "I", "G", "I0", "Sb", "Eb", "forearm_stressed_fraction")
+#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field).
+SPRING_ELEMENTS = {
+    "h4_actuator": ("joint", {"kc": "kc"}),
+    "h4_forearm": ("link", {"E": "E", "I": "I", "G": "G", "I0": "I0",
+                            "stressed_fraction": "forearm_stressed_fraction"}),
+    "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
+}
 
 
-def _parameters_xml(p: H4Params) -> str:
-    out = [f'  <h4_parameters format="{FORMAT_VERSION}" units="SI">']
-    for i in range(4):
-        attrs = " ".join(f'{f}="{_vec(getattr(p, f)[:, i])}"' for f in _LEG_FIELDS)
-        out.append(f'    <leg index="{i + 1}" lateral_bar="{LEG_LATERAL[i] + 1}" {attrs}/>')
-    for k in range(2):
-        out.append(f'    <lateral_bar index="{k + 1}" DC="{_vec(p.DC[:, k])}"/>')
-    out.append("    <dimensions " + " ".join(f'{f}="{_num(getattr(p, f))}"' for f in _DIMENSIONS) + "/>")
-    out.append("    <springs " + " ".join(f'{f}="{_num(getattr(p, f))}"' for f in _SPRINGS) + "/>")
-    out.append("  </h4_parameters>")
-    return "\n".join(out)
+@dataclasses.dataclass(frozen=True)
+class Closure:
+    """One ``<constraint type="point">``: the point ``parent_xyz`` of link ``parent`` coincides
+    with the point ``child_xyz`` of link ``child`` (each in its link's frame, m)."""
+
+    name: str
+    parent: str
+    parent_xyz: np.ndarray
+    child: str
+    child_xyz: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class URDFExtras:
+    """What h4pin reads from the custom elements of an H4 URDF (:func:`parse`).
+
+    Attributes:
+        closures: the ``<constraint>`` elements, in file order.
+        springs: ``{element name: {field: value}}`` for joints (kc) and links (forearm, bar data).
+        joint_child: ``{joint name: child link name}``.
+    """
+
+    closures: list[Closure]
+    springs: dict[str, dict[str, float]]
+    joint_child: dict[str, str]
+
+
+def decode(data: bytes, where: str) -> str:
+    """URDF bytes as text; binary or non-UTF-8 content is a :class:`MalformedURDFError`."""
+    if b"\0" in data:
+        raise MalformedURDFError(f"{where}: a binary file, not a URDF (XML text)")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MalformedURDFError(f"{where}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
 def _parse(text: str, where: str) -> ET.Element:
@@ -300,141 +342,106 @@ def _floats(text: str, n: int, where: str, what: str) -> np.ndarray:
         v = np.array([float(t) for t in text.split()])
     except ValueError:
         raise MalformedURDFError(f"{where}: {what} = {text!r} is not a list of numbers") from None
-    if v.shape != (n,):
-        raise MalformedURDFError(f"{where}: {what} = {text!r} must have {n} numbers")
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise MalformedURDFError(f"{where}: {what} = {text!r} must be {n} finite numbers")
     return v
 
 
-def params_from_urdf(text: str, where: str = "URDF") -> H4Params:
-    """Read the :class:`H4Params` stored in a URDF written by :func:`to_urdf`, and check it.
-
-    Args:
-        text: URDF XML text.
-        where: Name of the source used in error messages (e.g. the file path).
+def parse(text: str, where: str = "URDF") -> URDFExtras:
+    """Read and check the custom elements of an H4 URDF: closures, spring data, format.
 
     Raises:
-        MalformedURDFError: the ``<h4_parameters>`` element or one of its data is missing, a
-            closure is missing or names an unknown link, or the tree disagrees with the data.
-        h4pin.ParameterError: the stored data are not valid parameters.
+        MalformedURDFError: naming ``where`` and the element: not XML, not a ``<robot>``, an
+            ``<h4pin>`` marker with another format or units than SI, a closure that is not of
+            type ``point``, duplicated closure names, a spring datum that is not a number.
     """
     root = _parse(text, where)
-    hp = root.find("h4_parameters")
-    if hp is None:
-        raise MalformedURDFError(f"{where}: no <h4_parameters> element (spring data and geometry of the H4)")
-    legs = {e.get("index"): e for e in hp.findall("leg")}
-    laterals = {e.get("index"): e for e in hp.findall("lateral_bar")}
-    arrays = {f: np.zeros((3, 4)) for f in _LEG_FIELDS}
-    for i in range(4):
-        leg = legs.get(str(i + 1))
-        if leg is None:
-            raise MalformedURDFError(f"{where}: <h4_parameters> has no <leg index=\"{i + 1}\">")
-        for f in _LEG_FIELDS:
-            arrays[f][:, i] = _floats(_attr(leg, f, where, f"<leg index=\"{i + 1}\">"), 3, where, f"leg {i + 1} {f}")
-    dc = np.zeros((3, 2))
-    for k in range(2):
-        dc[:, k] = _floats(_attr(laterals.get(str(k + 1)), "DC", where, f"<lateral_bar index=\"{k + 1}\">"), 3,
-                           where, f"lateral bar {k + 1} DC")
-    scalars: dict[str, float] = {}
-    for tag, fields in (("dimensions", _DIMENSIONS), ("springs", _SPRINGS)):
-        elem = hp.find(tag)
-        if elem is None:
-            raise MalformedURDFError(f"{where}: <h4_parameters> has no <{tag}> element")
-        for f in fields:
-            label = "spring datum" if tag == "springs" else "dimension"
-            scalars[f] = float(_floats(_attr(elem, f, where, f"{label} <{tag}>"), 1, where, f)[0])
-    params = H4Params(**arrays, DC=dc, **scalars)
-    check_tree(root, params, where)
-    return params
-
-
-def _origin(elem: ET.Element, where: str, what: str) -> np.ndarray:
-    o = elem.find("origin")
-    if o is None:
-        return np.zeros(3)
-    if any(abs(x) > 0 for x in _floats(o.get("rpy", "0 0 0"), 3, where, f"{what} rpy")):
-        raise MalformedURDFError(f"{where}: {what} has a non-zero rpy; h4pin writes world-aligned origins")
-    return _floats(o.get("xyz", "0 0 0"), 3, where, f"{what} xyz")
-
-
-def check_tree(root: ET.Element, p: H4Params, where: str = "URDF", tol: float = 1e-9) -> None:
-    """Check that the kinematic tree and closures of ``root`` agree with the parameters ``p``."""
-    links = {e.get("name") for e in root.findall("link")}
-    joints = {e.get("name"): e for e in root.findall("joint")}
-
-    def joint(name: str, kind: str) -> ET.Element:
-        j = joints.get(name)
-        if j is None:
-            raise MalformedURDFError(f"{where}: joint '{name}' is missing")
-        if j.get("type") != kind:
-            raise MalformedURDFError(f"{where}: joint '{name}' has type '{j.get('type')}', expected '{kind}'")
-        return j
-
-    def agree(name: str, got: np.ndarray, want: np.ndarray, what: str) -> None:
-        if not np.allclose(got, want, atol=tol, rtol=0):
-            raise MalformedURDFError(
-                f"{where}: {what} of '{name}' is {got.tolist()}, <h4_parameters> says {want.tolist()}")
-
-    for i in range(4):
-        n = leg_names(i + 1)
-        j = joint(n["joint"], "revolute")
-        agree(n["joint"], _origin(j, where, n["joint"]), p.P[:, i], "origin")
-        axis = _floats(_attr(j.find("axis"), "xyz", where, f"joint '{n['joint']}' <axis>"), 3, where, "axis")
-        agree(n["joint"], axis, p.U[:, i], "axis")
-        for jj, s in enumerate((1.0, -1.0)):
-            b = bar_names(i + 1, jj + 1)
-            agree(b["u1"], _origin(joint(b["u1"], "revolute"), where, b["u1"]),
-                  p.r * p.forearm_dirs[:, i] + s * p.half_width * p.U[:, i], "origin (A_ij in the forearm frame)")
-            joint(b["u2"], "revolute")
-    joint("plate", "floating")
-    for k in range(2):
-        n = lateral_names(k + 1)
-        agree(n["joint"], _origin(joint(n["joint"], "revolute"), where, n["joint"]), p.DC[:, k], "origin")
-
-    closures = {e.get("name"): e for e in root.findall("constraint")}
-    bij = p.plate_ball_centres()
-    for i in range(4):
-        k = LEG_LATERAL[i]
-        for jj in range(2):
-            b = bar_names(i + 1, jj + 1)
-            c = closures.get(b["closure"])
-            if c is None:
-                raise MalformedURDFError(
-                    f"{where}: loop closure '{b['closure']}' (bar {i + 1}{jj + 1} on the plate) is missing")
-            for side in ("parent", "child"):
-                link = _attr(c.find(side), "link", where, f"<{side}> of closure '{b['closure']}'")
-                if link not in links:
-                    raise MalformedURDFError(f"{where}: closure '{b['closure']}' names unknown link '{link}'")
-            want_parent, want_child = b["bar"], lateral_names(k + 1)["link"]
-            if (c.find("parent").get("link"), c.find("child").get("link")) != (want_parent, want_child):  # type: ignore[union-attr]
-                raise MalformedURDFError(
-                    f"{where}: closure '{b['closure']}' must join '{want_parent}' to '{want_child}'")
-            po, co = (_floats(_attr(c.find(f"{side}_origin"), "xyz", where, f"<{side}_origin> of '{b['closure']}'"),
-                              3, where, "xyz") for side in ("parent", "child"))
-            agree(b["closure"], po, np.array([0.0, 0.0, -p.l]), "parent_origin")
-            agree(b["closure"], co, bij[i, jj] - p.DC[:, k], "child_origin")
+    if root.find("h4_parameters") is not None:
+        raise MalformedURDFError(f"{where}: <h4_parameters> is h4pin's format 1, which kept the geometry beside "
+                                 "the tree; regenerate the file (h4pin.urdf.write_urdf or scripts/generate_urdf.py)")
+    for marker in root.findall("h4pin"):
+        if marker.get("format", FORMAT_VERSION) != FORMAT_VERSION:
+            raise MalformedURDFError(f"{where}: <h4pin format=\"{marker.get('format')}\"> is unknown; this h4pin "
+                                     f"reads format {FORMAT_VERSION}")
+        if marker.get("units", "SI") != "SI":
+            raise MalformedURDFError(f"{where}: <h4pin units=\"{marker.get('units')}\">: only SI (m, N, Pa) is "
+                                     "supported")
+    closures, names = [], set()
+    for c in root.findall("constraint"):
+        name = _attr(c, "name", where, "a <constraint>")
+        if c.get("type") != "point":
+            raise MalformedURDFError(f"{where}: <constraint name=\"{name}\"> has type {c.get('type')!r}; the H4's "
+                                     "closures are 3-D point constraints (type=\"point\")")
+        if name in names:
+            raise MalformedURDFError(f"{where}: two <constraint> elements are named '{name}'")
+        names.add(name)
+        sides = []
+        for side in ("parent", "child"):
+            link = _attr(c.find(side), "link", where, f"<{side}> of closure '{name}'")
+            origin = c.find(f"{side}_origin")
+            xyz = np.zeros(3) if origin is None else _floats(origin.get("xyz", "0 0 0"), 3, where,
+                                                              f"<{side}_origin> of closure '{name}'")
+            sides += [link, xyz]
+        closures.append(Closure(name, *sides))
+    springs: dict[str, dict[str, float]] = {}
+    for tag, (kind, fields) in SPRING_ELEMENTS.items():
+        for elem in root.findall(kind):
+            found = elem.findall(tag)
+            if not found:
+                continue
+            owner = _attr(elem, "name", where, f"a <{kind}>")
+            if len(found) > 1:
+                raise MalformedURDFError(f"{where}: {kind} '{owner}' has {len(found)} <{tag}> elements")
+            data = springs.setdefault(owner, {})
+            for key, field in fields.items():
+                raw = found[0].get(key)
+                if raw is None:
+                    continue
+                data[field] = float(_floats(raw, 1, where, f"<{tag} {key}> of {kind} '{owner}'")[0])
+    joint_child = {}
+    for j in root.findall("joint"):
+        child = j.find("child")
+        if child is not None and j.get("name") is not None:
+            joint_child[j.get("name")] = child.get("link")
+    return URDFExtras(closures, springs, joint_child)
 
 
 def closures_from_urdf(text: str, where: str = "URDF") -> list[tuple[str, str, np.ndarray, str, np.ndarray]]:
     """The ``<constraint>`` elements as (name, parent link, parent xyz, child link, child xyz)."""
-    root = _parse(text, where)
-    out = []
-    for c in root.findall("constraint"):
-        name = _attr(c, "name", where, "<constraint>")
-        parts = []
-        for side in ("parent", "child"):
-            link = _attr(c.find(side), "link", where, f"<{side}> of closure '{name}'")
-            origin = _attr(c.find(f"{side}_origin"), "xyz", where, f"<{side}_origin> of '{name}'")
-            xyz = _floats(origin, 3, where, "xyz")
-            parts += [link, xyz]
-        out.append((name, *parts))
-    return out
+    return [(c.name, c.parent, c.parent_xyz, c.child, c.child_xyz) for c in parse(text, where).closures]
+
+
+def params_from_urdf(text: str, where: str = "URDF") -> H4Params:
+    """The nominal :class:`H4Params` of an H4 URDF whose layout they can describe, read from
+    the model (the inverse of :func:`to_urdf`, to round-off).
+
+    Raises:
+        MalformedURDFError: as :func:`h4pin.load`, or the robot is not of the H4Params family.
+    """
+    from h4pin.model import params_from_geometry
+    from h4pin.robot import H4
+
+    return params_from_geometry(H4(text, where).geometry)
 
 
 def write_urdf(params: H4Params, path: str | Path, name: str | None = None) -> Path:
-    """Write ``to_urdf(params)`` to ``path`` atomically (no half-written file on failure)."""
+    """Write ``to_urdf(params)`` to ``path`` atomically (mode 0644; no half-written file)."""
     path = Path(path)
-    text = to_urdf(params, name or path.stem)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    return write_text_atomic(path, to_urdf(params, name or path.stem))
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file in the same folder (mode 0644)."""
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path} is a directory")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     return path

@@ -41,9 +41,9 @@ from pinocchio.visualize import MeshcatVisualizer
 from tqdm import tqdm
 
 from h4pin import geometry
-from h4pin.deflection import as_load, deflected_configuration, deflection
+from h4pin.deflection import deflected_configuration, deflection
 from h4pin.robot import H4
-from h4pin.stiffness import compliance
+from h4pin.stiffness import as_load, compliance
 from h4pin.table2 import centre_pose
 
 ELLIPSOID_SIZE = 0.12  # m: default drawn radius of the largest ellipsoid axis (at most)
@@ -321,7 +321,6 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
     x = centre_pose(h4) if pose is None else geometry.as_poses(pose)
     if x.ndim != 1:
         raise ValueError(f"show takes one pose (4,), got shape {x.shape}")
-    h4.inverse_geometry(x)
     compliance(h4, x, model)  # fail before starting a server
     if load is not None:
         as_load(load)

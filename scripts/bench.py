@@ -41,18 +41,18 @@ def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
         a = np.cross(u, zz)
         b = c[k] + p.DB[:, i] - p.DC[:, k]
         e = b - p.P[:, i]
-        rhs = (e @ e + p.r**2 - p.l**2) / (2 * p.r)
+        rhs = (e @ e + p.r[i] ** 2 - p.l[2 * i] ** 2) / (2 * p.r[i])
         phi = np.arctan2(-e[2], e @ a)
         for sign in (1, -1):
             q[i] = phi + sign * np.arccos(rhs / np.hypot(e @ a, e[2]))
-            ai = p.P[:, i] + p.r * (a * np.cos(q[i]) - zz * np.sin(q[i]))
+            ai = p.P[:, i] + p.r[i] * (a * np.cos(q[i]) - zz * np.sin(q[i]))
             if u @ np.cross(ai - p.P[:, i], b - ai) > 0:
                 break
         A.append(ai)
         B.append(b)
         for s in (1, -1):
-            Aij.append(ai + s * p.half_width * u)
-            Bij.append(b + s * p.half_width * u)
+            Aij.append(ai + s * p.half_width[i] * u)
+            Bij.append(b + s * p.half_width[i] * u)
     m1, m2, m3, m4 = np.zeros((8, 8)), np.zeros((8, 32)), np.zeros((32, 4)), np.zeros((32, 8))
     jx, jq = np.zeros((4, 4)), np.zeros((4, 4))
     lengths = np.zeros(8)
@@ -84,8 +84,8 @@ def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
     j = np.linalg.inv(jx) @ jq
     jb_inv = np.linalg.inv(m1.T @ np.diag(1 / lengths))
     cc = p.compliances()
-    inner = ((cc["control"] + cc["bending"]) * m3 @ j.T @ r + cc["torsion"] * m4 @ jb_inv
-             + cc["tension"] * m5 @ jb_inv)
+    inner = (m3 @ np.diag(cc["control"] + cc["bending"]) @ j.T @ r
+             + m4 @ np.diag(np.repeat(cc["torsion"], 2)) @ jb_inv + m5 @ np.diag(cc["tension"]) @ jb_inv)
     return np.linalg.inv(m1) @ m2 @ inner
 
 
@@ -114,8 +114,8 @@ def main() -> None:
     t_batch_c = best_of(args.repeat, lambda: compliance(h4, poses, "consistent"))
     t_single = best_of(args.repeat, lambda: [compliance(h4, x, "paper") for x in few]) / n_single
     t_naive = best_of(args.repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
-    t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.params, x) for x in few[:200]]) / 200
-    t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.params, x) for x in few[:5]]) / 5
+    t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
+    t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
 
     ours = compliance(h4, few[:50], "paper").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from h4pin.params import VARIANTS
-from h4pin.urdf import to_urdf, write_urdf
+from h4pin.urdf import to_urdf, write_text_atomic
 
 URDF_DIR = Path(__file__).resolve().parent.parent / "urdf"
 
@@ -31,7 +31,7 @@ def main() -> int:
             continue
         stale.append(path)
         if not args.check:
-            write_urdf(make(), path)
+            write_text_atomic(path, text)
             print(f"wrote {path.relative_to(URDF_DIR.parent)}")
     if args.check and stale:
         print("stale: " + ", ".join(str(p.relative_to(URDF_DIR.parent)) for p in stale), file=sys.stderr)

@@ -54,7 +54,8 @@ def test_arrays_are_read_only_copies():
 def test_equality_and_replace():
     assert H4Params() == H4Params()
     assert H4Params().replace(half_width=0.02) != H4Params()
-    assert H4Params().replace(half_width=0.02).half_width == 0.02
+    assert np.all(H4Params().replace(half_width=0.02).half_width == 0.02)
+    assert H4Params(r=[0.26, 0.27, 0.26, 0.25]).r.tolist() == [0.26, 0.27, 0.26, 0.25]
 
 
 @pytest.mark.parametrize(
@@ -72,6 +73,13 @@ def test_equality_and_replace():
         ({"U": np.array([[0, 1, -1, 0], [-0.6, 0, 0, -1], [0.8, 0, 0, 0.0]])}, "U"),
         ({"half_width": 0.058}, "half_width"),
         ({"forearm_stressed_fraction": 1.5}, "forearm_stressed_fraction"),
+        ({"half_width": 0.07}, "legs 1 and 4 collide or cross"),
+        ({"half_width": 10.0}, "collide or cross"),
+        ({"l": True}, "l must be a real number"),
+        ({"r": "0.26"}, "r must be a real number"),
+        ({"kc": [1.0, 2.0]}, "kc must be a scalar or have 4 entries"),
+        ({"l": 0.05}, "cannot hold the plate"),
+        ({"ball_radius": np.nan}, "ball_radius"),
     ],
 )
 def test_bad_parameters_are_refused_naming_the_field(changes, field):
@@ -89,7 +97,7 @@ def test_half_width_collision_names_the_legs():
 def test_compliances_closed_form():
     p = H4Params(forearm_stressed_fraction=2 / 3)
     c = p.compliances()
-    assert c["control"] == pytest.approx(1 / 7400)
-    assert c["bending"] == pytest.approx((2 / 3) ** 3 * 0.26 / (3 * 7e10 * 1.6e-8))
-    assert c["torsion"] == pytest.approx((2 / 3) * 0.26 / (2.8e10 * 3.2e-8))
-    assert c["tension"] == pytest.approx(0.48 / (28e-6 * 2e11))
+    assert c["control"] == pytest.approx(np.full(4, 1 / 7400))
+    assert c["bending"] == pytest.approx(np.full(4, (2 / 3) ** 3 * 0.26 / (3 * 7e10 * 1.6e-8)))
+    assert c["torsion"] == pytest.approx(np.full(4, (2 / 3) * 0.26 / (2.8e10 * 3.2e-8)))
+    assert c["tension"] == pytest.approx(np.full(8, 0.48 / (28e-6 * 2e11)))

@@ -8,7 +8,9 @@ import pytest
 from conftest import sample_poses
 
 from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, load, statics
-from h4pin.stiffness import TERMS, compliance, matrices, matrices_closed_form
+from h4pin import geometry
+from h4pin.matrices import from_points
+from h4pin.stiffness import TERMS, compliance, matrices_at
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -39,7 +41,7 @@ def test_control_term_hand_computation(proto, poses):
         j = np.linalg.solve(jx, jq)
         for model in ("paper", "consistent"):
             ctrl = compliance(proto, x, model).terms["control"][np.ix_([0, 1, 2, 5], [0, 1, 2, 5])]
-            assert rel(ctrl, j @ j.T / proto.params.kc) < 1e-12
+            assert rel(ctrl, j @ j.T / proto.geometry.springs['kc'][0]) < 1e-12
 
 
 def test_bending_and_torsion_scale_with_the_stressed_fraction(centre):
@@ -47,7 +49,7 @@ def test_bending_and_torsion_scale_with_the_stressed_fraction(centre):
     full, part = load(H4Params()), load(H4Params(forearm_stressed_fraction=2 / 3))
     a, b = compliance(full, centre), compliance(part, centre)
     p = full.params
-    assert rel(a.terms["bending"], a.terms["control"] * p.kc * p.r / (3 * p.E * p.I)) < 1e-12
+    assert rel(a.terms["bending"], a.terms["control"] * p.kc[0] * p.r[0] / (3 * p.E[0] * p.I[0])) < 1e-12
     assert rel(b.terms["bending"], a.terms["bending"] * (2 / 3) ** 3) < 1e-12
     assert rel(b.terms["torsion"], a.terms["torsion"] * (2 / 3)) < 1e-12
     assert rel(b.terms["tension"], a.terms["tension"]) < 1e-12
@@ -58,7 +60,7 @@ def test_consistent_equals_statics_route(proto, poses):
     worst = 0.0
     for x in poses:
         ours = compliance(proto, x, "consistent").terms
-        theirs = statics.compliance_terms(proto.params, x)
+        theirs = statics.compliance_terms(proto.geometry, x)
         worst = max(worst, *(rel(ours[t], theirs[t]) for t in TERMS))
     assert worst <= 1e-9, f"consistent K vs statics route: {worst:.1e} relative"
 
@@ -66,22 +68,22 @@ def test_consistent_equals_statics_route(proto, poses):
 def test_jb_inverse_equals_statics_bar_forces(proto, poses):
     """Eq. 17 f_b = Jb^-1 Gamma_ext with Jb = M1^T diag(1/l) vs the plate equilibrium."""
     for x in poses[:4]:
-        jb = matrices(proto, x).Jb
-        assert rel(np.linalg.inv(jb), statics.bar_forces(proto.params, x)) < 1e-10
+        jb = matrices_at(proto, x).Jb
+        assert rel(np.linalg.inv(jb), statics.bar_forces(proto.geometry, x)) < 1e-10
 
 
 def test_translational_block_equals_finite_differences(proto, poses):
     """Perturb each spring, re-solve the closure, difference the plate pose: <= 1e-6."""
     worst = 0.0
     for x in poses[:3]:
-        fd = sum(deformed.compliance_terms(proto.params, x).values())
+        fd = sum(deformed.compliance_terms(proto.geometry, x).values())
         for model in ("paper", "consistent"):
             worst = max(worst, rel(compliance(proto, x, model).translational, fd[:3, :3]))
     assert worst <= 1e-6, f"translational block vs finite differences: {worst:.1e} relative"
 
 
 def test_consistent_full_matrix_equals_finite_differences(proto, poses):
-    fd = sum(deformed.compliance_terms(proto.params, poses[0]).values())
+    fd = sum(deformed.compliance_terms(proto.geometry, poses[0]).values())
     assert rel(compliance(proto, poses[0], "consistent").matrix, fd) <= 1e-6
 
 
@@ -90,7 +92,7 @@ def test_nonlinear_loaded_equilibrium(proto, poses, direction):
     """Non-linear equilibrium under 10 N at D moves D by K F within 0.5 %."""
     x = poses[1]
     force = 10.0 * np.asarray(direction) / np.linalg.norm(direction)
-    d_nonlinear, _ = deformed.loaded_equilibrium(proto.params, x, force)
+    d_nonlinear, _ = deformed.loaded_equilibrium(proto.geometry, x, force)
     d_linear = compliance(proto, x).translational @ force
     err = np.linalg.norm(d_nonlinear - d_linear) / np.linalg.norm(d_linear)
     assert err < 5e-3, f"non-linear vs K F: {err:.2%}"
@@ -122,8 +124,8 @@ def test_mirror_symmetry_zeroes_the_y_couplings(proto, centre):
 def test_pinocchio_matrices_equal_cross_product_formulas(proto, poses):
     """M1 rows w^T JB (Pinocchio) = eq. 6 cross products; M3 from Pinocchio = eq. 11; J = eq. 8."""
     for x in poses:
-        pin_m = matrices(proto, x)
-        cf = matrices_closed_form(proto.params, x, proto.inverse_geometry(x))
+        pin_m = matrices_at(proto, x)
+        cf = from_points(proto.geometry, geometry.points(proto.geometry, proto.state(x)))
         for name in ("M1", "M2", "J", "M3", "M4", "Jb"):
             a, b = getattr(pin_m, name), getattr(cf, name)
             assert rel(a, b) < 1e-12, name
@@ -132,7 +134,7 @@ def test_pinocchio_matrices_equal_cross_product_formulas(proto, poses):
 def test_rigid_motion_of_m1_recovers_j(proto, poses):
     """M1^-1 M2 M3 (eqs. 6, 11) moves the plate as eq. 8 says, with d omega_k = -d theta."""
     for x in poses:
-        m = matrices(proto, x)
+        m = matrices_at(proto, x)
         g3 = np.linalg.solve(m.M1, m.M2 @ m.M3)
         assert rel(g3[[0, 1, 2, 5]], m.J) < 1e-12
         np.testing.assert_allclose(g3[[3, 4]], 0.0, atol=1e-12 * np.max(np.abs(g3)))
@@ -143,7 +145,8 @@ def test_rigid_motion_of_m1_recovers_j(proto, poses):
 def test_batch_equals_single_pose(proto):
     xs = sample_poses(proto, 40, seed=1)
     for model in ("paper", "consistent"):
-        batch = compliance(proto, xs, model)
+        batch = compliance(proto, xs, model, terms=True)
+        assert compliance(proto, xs[:2], model).terms is None  # terms on request for a batch
         assert batch.matrix.shape == (40, 8, 8) and batch.terms["torsion"].shape == (40, 8, 8)
         for n in (0, 17, 39):
             single = compliance(proto, xs[n], model)
@@ -194,20 +197,19 @@ def test_bad_options(proto, centre):
 def test_n_matrix_moves_the_anchors_like_a_forearm_twist(proto, poses):
     """Eq. 22-23: (r/(G I0)) N_i [f_i1, f_i2] is the move of A_i1, A_i2 when forearm i twists
     under the bar forces (statics route), here against the twisted geometry of h4pin.deformed."""
-    from h4pin.geometry import points
-    from h4pin.stiffness import n_matrix
+    from h4pin.matrices import n_matrix
 
     x = poses[5]
     gamma = np.array([3.0, -1.0, -8.0, 0.2, -0.1, 0.3, 0.05, -0.02])
-    c = proto.params.compliances()["torsion"]
-    forces = statics.bar_forces(proto.params, x) @ gamma
-    twist = c * statics.spring_loads(proto.params, x)["torsion"] @ gamma  # rad, per forearm
-    n = n_matrix(points(proto.params, x, proto.inverse_geometry(x)))
-    robot = deformed.DeformedH4(proto.params, x)
+    c = proto.geometry.compliances()["torsion"]
+    forces = statics.bar_forces(proto.geometry, x) @ gamma
+    twist = c * (statics.spring_loads(proto.geometry, x)["torsion"] @ gamma)  # rad, per forearm
+    n = n_matrix(geometry.points(proto.geometry, proto.state(x)))
+    robot = deformed.DeformedH4(proto.geometry, x)
     for i in range(4):
         eps = np.zeros(16)
         eps[4 + i] = twist[i]
         moved = (robot.anchors(eps)[0] - robot.anchors(-eps)[0])[2 * i:2 * i + 2].reshape(6) / 2
-        predicted = c * n[i] @ forces[2 * i:2 * i + 2]
+        predicted = c[i] * n[i] @ forces[2 * i:2 * i + 2]
         assert np.max(np.abs(predicted - moved)) < 1e-7 * np.max(np.abs(moved))  # O(twist^2) truncation
         assert np.max(np.abs(moved)) > 0
