@@ -201,12 +201,13 @@ def _bar_jacobians(g: H4Geometry, pts: Points) -> tuple[np.ndarray, np.ndarray, 
 
 
 def _newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, tol: float = 1e-13,
-            max_iter: int = 30) -> tuple[PlateState, np.ndarray]:
+            max_iter: int = 30) -> tuple[PlateState, np.ndarray, np.ndarray]:
     """Solve the eight closures ``(|B_ij - A_ij|^2 - l_ij^2) / 2 = 0`` by Newton's method.
 
     ``free_q``: unknowns are q, the tilt of the central bar and the lateral angles (inverse
     geometry: D and theta fixed); otherwise D, theta, tilt and the lateral angles (forward
-    geometry: q fixed). Returns the state and a converged flag per pose.
+    geometry: q fixed). Returns the state, a converged flag per pose and theta (the pose's
+    rotation: R = exp(tilt) Rz(theta), tilt normal to z).
     """
     q, D, theta = state.q.copy(), state.D.copy(), pose[..., 3].copy()
     tilt = np.zeros((*theta.shape, 3))
@@ -220,17 +221,13 @@ def _newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, to
         res = 0.5 * (np.sum(w * w, axis=-1) - g.l**2)
         done = np.max(np.abs(res), axis=-1) < tol * float(np.max(g.l))
         if np.all(done):
-            return st, done
+            return st, done, theta
         if free_q:  # columns: q (4), tilt x, y, lateral 1, 2
             jac = np.concatenate([dq, m1[..., 3:5], m1[..., 6:8]], axis=-1)
         else:  # columns: D (3), theta (rotation about z with the lateral bars kept), tilt x, y, lateral 1, 2
             dtheta = m1[..., 5:6] - m1[..., 6:7] * (g.lat == 0)[:, None] - m1[..., 7:8] * (g.lat == 1)[:, None]
             jac = np.concatenate([m1[..., :3], dtheta, m1[..., 3:5], m1[..., 6:8]], axis=-1)
-        with np.errstate(all="ignore"):
-            try:
-                step = np.linalg.solve(jac, -res[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                step = np.full(res.shape, np.nan)
+        step = _solve_rows(jac, -res)
         step = np.where(done[..., None], 0.0, step)
         if free_q:
             q = q + step[..., :4]
@@ -246,7 +243,24 @@ def _newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, to
     pts = points(g, st)
     w = (pts.Bij - pts.Aij).reshape(*theta.shape, 8, 3)
     res = 0.5 * (np.sum(w * w, axis=-1) - g.l**2)
-    return st, np.max(np.abs(res), axis=-1) < tol * float(np.max(g.l))
+    return st, np.max(np.abs(res), axis=-1) < tol * float(np.max(g.l)), theta
+
+
+def _solve_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 b`` for a batch of square systems; a singular one gives NaN, not an exception."""
+    with np.errstate(all="ignore"):
+        try:
+            return np.linalg.solve(a, b[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            out = np.full(b.shape, np.nan)
+            flat_a, flat_b = a.reshape(-1, *a.shape[-2:]), b.reshape(-1, b.shape[-1])
+            flat = out.reshape(-1, b.shape[-1])
+            for n in range(len(flat_a)):
+                try:
+                    flat[n] = np.linalg.solve(flat_a[n], flat_b[n])
+                except np.linalg.LinAlgError:
+                    pass
+            return out
 
 
 def segment_distances(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> np.ndarray:
@@ -292,9 +306,15 @@ def solve(g: H4Geometry, pose: np.ndarray, *, check: bool = True) -> Solution:
         detail[k] = _unreachable_message(g, e[k, leg], leg)
     state = rigid_state(xb, q)
     if not g.ideal:
-        state, converged = _newton(g, xb, state, free_q=True)
+        idx = np.flatnonzero(status == OK)
+        sub, converged, _ = _newton(g, xb[idx], PlateState(*(a[idx] for a in state)), free_q=True)
+        state = PlateState(*(np.array(a) for a in state))
+        for full, part in zip(state, sub, strict=True):
+            full[idx] = part
         q = state.q
-        for k in np.flatnonzero(~converged & (status == OK)):
+        converged_all = np.ones(n, dtype=bool)
+        converged_all[idx] = converged
+        for k in np.flatnonzero(~converged_all & (status == OK)):
             status[k] = UNREACHABLE
             detail[k] = "the closures of the toleranced robot have no solution near the nominal assembly"
     if check:
@@ -429,10 +449,10 @@ def forward_state(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None,
     else:
         x = as_pose(guess, "guess").copy()
     start = rigid_state(x, q)
-    state, converged = _newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter)
+    state, converged, theta = _newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter)
     if not converged:
         raise ConvergenceError(f"forward geometry did not converge for q = {q} rad: the legs may not assemble")
-    pose = np.r_[state.D, np.arctan2(state.R[1, 0], state.R[0, 0])]
+    pose = np.r_[state.D, theta]
     q_back = inverse_geometry(g, pose, on_error="nan", check=False)
     if not np.allclose(q_back, q, atol=1e-8):
         raise ConvergenceError(f"forward geometry for q = {q} converged to pose {pose}, which is not on the "

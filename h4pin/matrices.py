@@ -103,18 +103,21 @@ def n_matrix(pts: Points) -> np.ndarray:
     """N of eq. 23, one 6x2 block per leg, (..., 4, 6, 2).
 
     The printed N is garbled. Per leg, the reading that makes eqs. 22 and 23 agree in sign is
-    ``N_i = [p_i1 x r_i; p_i2 x r_i] [(p_i1 x r_i).w_i, (p_i2 x r_i).w_i]``, with
-    p_ij = P_i - A_ij, r_i the unit vector A_i -> P_i and w_i the unit vector A_i -> B_i. A twist
-    of forearm i under bar forces f_i1, f_i2 moves A_i1, A_i2 by ``c_torsion N_i [f_i1, f_i2]``.
+    ``N_i = [p_i1 x r_i; p_i2 x r_i] [(p_i1 x r_i).w_i1, (p_i2 x r_i).w_i2]``, with
+    p_ij = P_i - A_ij, r_i the unit vector A_i -> P_i and w_ij the unit vector A_ij -> B_ij. A
+    twist of forearm i under bar forces f_i1, f_i2 moves A_i1, A_i2 by
+    ``c_torsion N_i [f_i1, f_i2]``. The paper writes w_i (A_i -> B_i) in eq. 18: the same vector
+    for a true parallelogram; for a toleranced robot each bar pulls along its own w_ij, and only
+    that keeps K symmetric (the statics route, :mod:`h4pin.statics`, agrees).
     """
     shape = pts.Aij.shape[:-3]
     p = pts.P[:, None, :] - pts.Aij  # (..., 4, 2, 3)
     r = pts.P - pts.A
     r = r / np.linalg.norm(r, axis=-1, keepdims=True)
-    wl = pts.B - pts.A
+    wl = pts.Bij - pts.Aij
     wl = wl / np.linalg.norm(wl, axis=-1, keepdims=True)
     pr = geometry.cross(p, r[..., None, :])  # p_ij x r_i
-    c = np.einsum("...ija,...ia->...ij", pr, wl)  # (p_ij x r_i) . w_i
+    c = np.sum(pr * wl, axis=-1)  # (p_ij x r_i) . w_ij
     return pr.reshape(*shape, 4, 6)[..., :, None] * c[..., None, :]
 
 

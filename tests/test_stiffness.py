@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 from conftest import sample_poses
 
-from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, load, statics
-from h4pin import geometry
+from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, geometry, load, statics
 from h4pin.matrices import from_points
 from h4pin.stiffness import TERMS, compliance, matrices_at
 
