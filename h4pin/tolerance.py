@@ -60,7 +60,8 @@ DEFAULT_SIGMAS = {"forearm": TOLERANCES["r"], "A0": TOLERANCES["half_width"], "b
 OUTPUTS = (("xx", 1e6, "um/N"), ("yy", 1e6, "um/N"), ("zz", 1e6, "um/N"), ("xz", 1e6, "um/N"),
            ("lambda_max", 1e6, "um/N"), ("dx", 1e6, "um"), ("dy", 1e6, "um"), ("dz", 1e6, "um"),
            ("dtheta", 1e6, "urad"), ("tilt", 1e6, "urad"))
-_CHUNK = 16384  # robot x pose pairs per vectorised block
+_Z = np.array([0.0, 0.0, 1.0])
+_CHUNK = 4096  # robot x pose pairs per vectorised block
 
 
 def check_sigmas(sigmas: dict[str, float] | None) -> dict[str, float]:
@@ -150,12 +151,24 @@ class _Pts(NamedTuple):
     v: np.ndarray
 
 
-def _points(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, R: np.ndarray, omega: np.ndarray) -> _Pts:
-    Rt = np.swapaxes(R, -1, -2)
-    C = D[..., None, :] + bg.C0 @ Rt
-    lat_rot = R[..., None, :, :] @ exp_so3(bg.v * omega[..., :, None])  # (..., 2, 3, 3)
-    B = C[..., bg.lat, :] + (lat_rot[..., bg.lat, :, :] @ bg.b[..., None])[..., 0]
-    return _Pts(D, C, B, _forearm_points(bg, q), bg.v @ Rt)
+def _rot(R: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """R (..., 3, 3) applied to points x (..., k, 3), elementwise (faster than tiny matmuls)."""
+    return (R[..., None, :, 0] * x[..., 0:1] + R[..., None, :, 1] * x[..., 1:2]
+            + R[..., None, :, 2] * x[..., 2:3])
+
+
+def _points(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, R: np.ndarray, omega: np.ndarray,
+            aij: np.ndarray | None = None) -> _Pts:
+    C = D[..., None, :] + _rot(R, bg.C0)
+    if np.array_equal(bg.v, np.tile(_Z, (2, 1))):  # vertical lateral axes: turn b about z
+        c, s = np.cos(omega)[..., bg.lat], np.sin(omega)[..., bg.lat]
+        bx, by = bg.b[..., 0], bg.b[..., 1]
+        bl = np.stack([c * bx - s * by, s * bx + c * by, np.broadcast_to(bg.b[..., 2], c.shape)], axis=-1)
+        B = C[..., bg.lat, :] + _rot(R, bl)
+    else:
+        lat_rot = R[..., None, :, :] @ exp_so3(bg.v * omega[..., :, None])  # (..., 2, 3, 3)
+        B = C[..., bg.lat, :] + (lat_rot[..., bg.lat, :, :] @ bg.b[..., None])[..., 0]
+    return _Pts(D, C, B, _forearm_points(bg, q) if aij is None else aij, bg.v @ np.swapaxes(R, -1, -2))
 
 
 def _bar_jacobians(bg: BatchGeometry, pts: _Pts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -184,8 +197,13 @@ class _State(NamedTuple):
 
 
 def _newton(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, theta: np.ndarray, free_q: bool,
-            tol: float = 1e-13, max_iter: int = 30) -> tuple[_State, _Pts, np.ndarray]:
-    """As :func:`h4pin.geometry._newton`, started from the rigid state (q, D, theta)."""
+            jac0_inv: np.ndarray | None = None, tol: float = 1e-13, max_iter: int = 30) -> tuple[_State, _Pts, np.ndarray]:
+    """As :func:`h4pin.geometry._newton`, started from the rigid state (q, D, theta) (..., pairs).
+
+    With ``jac0_inv`` (the inverse Jacobian of the nominal robot at each pair's pose), the chord
+    method: that fixed Jacobian for every step (the errors are small, so it converges almost as
+    fast, at the cost of residuals only); pairs it leaves unconverged finish with full Newton.
+    """
     shape = theta.shape
     q = np.broadcast_to(q, (*shape, 4)).copy()
     D = np.broadcast_to(D, (*shape, 3)).copy()
@@ -195,24 +213,32 @@ def _newton(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, theta: np.ndarray, 
     scale = tol * float(np.max(bg.l))
     lat0 = (bg.lat == 0)[:, None]
     lat1 = (bg.lat == 1)[:, None]
-    for _ in range(max_iter + 1):
+    chord = jac0_inv is not None
+    aij = None if free_q else _forearm_points(bg, q)
+    for it in range(max_iter + 1):
         R = exp_so3(tilt) @ rot_z(theta)
-        pts = _points(bg, q, D, R, psi - theta[..., None])
-        w, m1, dq = _bar_jacobians(bg, pts)
+        pts = _points(bg, q, D, R, psi - theta[..., None], aij)
+        if chord:
+            w = pts.Bij - pts.Aij
+        else:
+            w, m1, dq = _bar_jacobians(bg, pts)
         res = 0.5 * (np.sum(w * w, axis=-1) - bg.l**2)
         done = np.max(np.abs(res), axis=-1) < scale
-        if np.all(done) or _ == max_iter:
+        if np.all(done) or it == max_iter:
             break
-        if free_q:
-            jac = np.concatenate([dq, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+        if chord:
+            step = -(jac0_inv @ res[..., None])[..., 0]
         else:
-            dtheta = m1[..., 5:6] - m1[..., 6:7] * lat0 - m1[..., 7:8] * lat1
-            jac = np.concatenate([m1[..., :3], dtheta, m1[..., 3:5], m1[..., 6:8]], axis=-1)
-        with np.errstate(all="ignore"):
-            try:
-                step = np.linalg.solve(jac, -res[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                step = np.full(res.shape, np.nan)
+            if free_q:
+                jac = np.concatenate([dq, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+            else:
+                dtheta = m1[..., 5:6] - m1[..., 6:7] * lat0 - m1[..., 7:8] * lat1
+                jac = np.concatenate([m1[..., :3], dtheta, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+            with np.errstate(all="ignore"):
+                try:
+                    step = np.linalg.solve(jac, -res[..., None])[..., 0]
+                except np.linalg.LinAlgError:
+                    step = np.full(res.shape, np.nan)
         step = np.where(done[..., None], 0.0, step)
         if free_q:
             q += step[..., :4]
@@ -224,6 +250,30 @@ def _newton(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, theta: np.ndarray, 
         if not np.all(np.isfinite(step)):
             break
     return _State(q, D, R, psi - theta[..., None], theta, tilt), pts, done
+
+
+def _jacobian(bg: BatchGeometry, pts: _Pts, free_q: bool) -> np.ndarray:
+    """The Newton Jacobian of :func:`_newton` (..., 8, 8) at points ``pts``."""
+    _, m1, dq = _bar_jacobians(bg, pts)
+    if free_q:
+        return np.concatenate([dq, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+    lat0, lat1 = (bg.lat == 0)[:, None], (bg.lat == 1)[:, None]
+    dtheta = m1[..., 5:6] - m1[..., 6:7] * lat0 - m1[..., 7:8] * lat1
+    return np.concatenate([m1[..., :3], dtheta, m1[..., 3:5], m1[..., 6:8]], axis=-1)
+
+
+def _solve_pairs(bg: BatchGeometry, q: np.ndarray, x: np.ndarray, free_q: bool,
+                 jac0_inv: np.ndarray) -> tuple[_State, _Pts, np.ndarray]:
+    """Chord method on flat pairs, then full Newton on the pairs it left unconverged."""
+    st, pts, done = _newton(bg, q, x[:, :3], x[:, 3], free_q, jac0_inv, max_iter=8)
+    bad = np.flatnonzero(~done)
+    if bad.size:
+        sub = bg._replace(P=bg.P[bad], A0=bg.A0[bad], l=bg.l[bad], C0=bg.C0[bad], b=bg.b[bad])
+        st2, pts2, done2 = _newton(sub, q[bad], x[bad, :3], x[bad, 3], free_q)
+        for a, a2 in zip((*st, *pts), (*st2, *pts2), strict=True):
+            a[bad] = a2
+        done[bad] = done2
+    return st, pts, done
 
 
 def _compliance_tt(bg: BatchGeometry, pts: _Pts, model: str) -> np.ndarray:
@@ -357,35 +407,41 @@ def study(h4, poses: np.ndarray | None = None, n_robots: int = 1000, sigmas: dic
     err = np.full((n_robots, m, 4), np.nan)
     tilt = np.full((n_robots, m), np.nan)
     conv = np.zeros((n_robots, m), dtype=bool)
-    per = max(1, _CHUNK // m)
-    starts = range(0, n_robots, per)
+    # Nominal Newton Jacobians per pose (chord method for the small perturbations).
+    nb = batch._replace(P=g.P[None], A0=g.A0[None], l=g.l[None], C0=g.C0[None], b=g.b[None])
+    st0 = geometry.rigid_state(x, q_nom)
+    pts0 = _points(nb, q_nom, x[:, :3], st0.R, st0.omega)
+    inv_free = np.linalg.inv(_jacobian(nb, pts0, True))
+    inv_fwd = np.linalg.inv(_jacobian(nb, pts0, False))
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=n_robots * m, unit="pair", desc="tolerance study", leave=False)
-    for s0 in starts:
-        idx = np.arange(s0, min(s0 + per, n_robots))
-        bg = batch.take(idx)
-        theta = np.broadcast_to(x[:, 3], (len(idx), m))
+    total = n_robots * m
+    for s0 in range(0, total, _CHUNK):
+        flat = np.arange(s0, min(s0 + _CHUNK, total))
+        ri, pi = flat // m, flat % m
+        bg = batch.take(ri, pose_axis=False)
+        xp, qp = x[pi], q_nom[pi]
         # Compliance at the pose: the robot's own inverse geometry (q and the tilt free).
-        st, pts, ok1 = _newton(bg, q_nom, x[:, :3], theta, free_q=True)
+        _, pts, ok1 = _solve_pairs(bg, qp, xp, True, inv_free[pi])
         with np.errstate(all="ignore"):
             try:
                 kk = _compliance_tt(bg, pts, model)
             except np.linalg.LinAlgError:
-                kk = np.full((len(idx), m, 8, 8), np.nan)
+                kk = np.full((len(flat), 8, 8), np.nan)
         # Pose error at the commanded nominal q (forward geometry).
-        fw, _, ok2 = _newton(bg, q_nom, x[:, :3], theta, free_q=False)
+        fw, _, ok2 = _solve_pairs(bg, qp, xp, False, inv_fwd[pi])
         ok = ok1 & ok2
         theta_f = np.arctan2(fw.R[..., 1, 0], fw.R[..., 0, 0])
-        e = np.concatenate([fw.D - x[:, :3], (theta_f - x[:, 3])[..., None]], axis=-1)
-        comp[idx] = np.where(ok[..., None, None], kk[..., :3, :3], np.nan)
-        err[idx] = np.where(ok[..., None], e, np.nan)
-        tilt[idx] = np.where(ok, np.linalg.norm(fw.tilt[..., :2], axis=-1), np.nan)
-        conv[idx] = ok
+        e = np.concatenate([fw.D - xp[:, :3], (theta_f - xp[:, 3])[..., None]], axis=-1)
+        comp[ri, pi] = np.where(ok[..., None, None], kk[..., :3, :3], np.nan)
+        err[ri, pi] = np.where(ok[..., None], e, np.nan)
+        tilt[ri, pi] = np.where(ok, np.linalg.norm(fw.tilt[..., :2], axis=-1), np.nan)
+        conv[ri, pi] = ok
         if bar is not None:
-            bar.update(len(idx) * m)
+            bar.update(len(flat))
     if bar is not None:
         bar.close()
     return ToleranceResult(x, q_nom, check_sigmas(sigmas), comp, nom.translational, err, tilt, conv)
