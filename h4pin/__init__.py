@@ -4,6 +4,7 @@
 from h4pin.errors import (
     ConvergenceError,
     H4Error,
+    LoadError,
     MalformedURDFError,
     ParameterError,
     PoseError,
@@ -12,20 +13,24 @@ from h4pin.errors import (
 )
 from h4pin.params import VARIANTS, H4Params, symmetric_params
 from h4pin.robot import H4, load
+from h4pin.stiffness import Compliance, compliance
 
 __version__ = "0.1.0"
 
 __all__ = [
     "H4",
     "VARIANTS",
+    "Compliance",
     "ConvergenceError",
     "H4Error",
     "H4Params",
+    "LoadError",
     "MalformedURDFError",
     "ParameterError",
     "PoseError",
     "SingularPoseError",
     "UnreachablePoseError",
+    "compliance",
     "load",
     "symmetric_params",
 ]

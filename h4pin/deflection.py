@@ -13,22 +13,37 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import geometry
+from h4pin.errors import LoadError
 from h4pin.robot import H4
 from h4pin.stiffness import R_CONSISTENT, R_PAPER, matrices, terms_from_matrices
 
 
 def as_load(load: np.ndarray | list | tuple) -> np.ndarray:
-    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
-    g = np.asarray(load, dtype=float)
+    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI.
+
+    Raises:
+        LoadError: ``load`` is not numeric, has another size, or holds NaN or infinity.
+    """
+    try:
+        g = np.asarray(load, dtype=float)
+    except (TypeError, ValueError):
+        raise LoadError(f"load must be a force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
+                        f"got {load!r}") from None
     if g.shape == (3,):
         g = np.r_[g, np.zeros(5)]
-    if g.shape != (8,) or not np.all(np.isfinite(g)):
-        raise ValueError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), got {load!r}")
+    if g.shape != (8,):
+        raise LoadError(f"load must be a force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), got shape "
+                        f"{np.shape(load)}")
+    if not np.all(np.isfinite(g)):
+        raise LoadError(f"load must be finite (no NaN or infinity), got {load!r}")
     return g
 
 
 def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consistent") -> tuple[np.ndarray, np.ndarray]:
     """Linear deflection under ``load``: plate ``dtp`` (8,) and actuator-side rotations ``dq`` (4,).
+
+    ``load`` is a force F (3,) in N at D or Gamma_ext (8,); a NaN, infinite or wrongly sized
+    load raises :class:`h4pin.LoadError`.
 
     ``dq`` is the rotation of each forearm tip about its actuator axis from control stiffness and
     bending, ``(1/kc + r/(3EI)) Gamma_act`` with ``Gamma_act = J^T R Gamma_ext`` (eqs. 10, 15).
