@@ -3,10 +3,17 @@
 
 Errors a user can act on (unreachable or singular pose, bad parameter, malformed URDF, bad
 arguments) print one line on stderr and exit with status 2; nothing is half-written.
+
+``h4pin view`` without ``--html`` serves the scene until it is stopped. Whatever stops it, its
+meshcat server stops too, and the exit status says why, as shells do for a signal (128 + its
+number): Ctrl-C (SIGINT) exits 130, SIGTERM 143, SIGHUP (terminal closed) 129. A signal the
+command was started with ignored (``nohup``, a shell's background job) stays ignored.
 """
 
 from __future__ import annotations
 
+import math
+import signal
 import sys
 from pathlib import Path
 
@@ -21,6 +28,54 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 @app.callback()
 def _root() -> None:
     """The H4 parallel robot on Pinocchio and its stiffness (Company et al., ICRA 2005)."""
+
+
+class Stopped(BaseException):
+    """SIGTERM or SIGHUP arrived: unwinds like Ctrl-C's KeyboardInterrupt, so cleanups run."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _stop_on_signal(signum: int, _frame: object) -> None:
+    raise Stopped(signum)
+
+
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+# Options that take a fixed number of values: a wrong count is reported against the option.
+ARITY = {"--pose": (4, "X Y Z THETA (m, rad)"), "--load": (3, "FX FY FZ (N)")}
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def check_arity(argv: list[str]) -> None:
+    """Refuse ``--pose``/``--load`` followed by another count of numbers than they take (click
+    would report a missing value vaguely, or an extra one as an unexpected argument)."""
+    for n, token in enumerate(argv):
+        name = token.split("=", 1)[0]
+        if name not in ARITY or "=" in token:
+            continue
+        count, what = ARITY[name]
+        values = 0
+        while n + 1 + values < len(argv) and _is_number(argv[n + 1 + values]):
+            values += 1
+        if values != count:
+            got = " ".join(argv[n + 1:n + 1 + values]) or "nothing"
+            fail(f"{name} takes {count} numbers {what}, got {values}: {got}")
+
+
+def check_finite(name: str, values: tuple[float, ...] | None) -> None:
+    """Refuse NaN or infinite values of an option."""
+    if values is not None and not all(math.isfinite(v) for v in values):
+        fail(f"{name} must be finite numbers, got {' '.join(f'{v:g}' for v in values)}")
 
 
 def fail(message: str) -> None:
@@ -64,17 +119,33 @@ def view(
     scale: float | None = typer.Option(None, help="ellipsoid scale, mm per um/N (default: automatic)"),
     exaggeration: float | None = typer.Option(None, help="factor on the drawn deflection (default: automatic)"),
     model: str = typer.Option("consistent", help="'consistent' (symmetric K) or 'paper'"),
+    host: str = typer.Option("127.0.0.1", help="interface the server listens on; 0.0.0.0 lets other machines in"),
 ) -> None:
-    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser)."""
+    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser).
+
+    Ctrl-C, SIGTERM and SIGHUP stop the server (exit 130, 143, 129)."""
     import time
 
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup's choice stands
+            signal.signal(sig, _stop_on_signal)
+    check_finite("--pose", pose)
+    check_finite("--load", load)
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
+    if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
+        fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
+    if html is not None:
+        if html.is_dir():
+            fail(f"--html {html} is a folder: give the path of the page to write, e.g. {html / 'h4.html'}")
+        if not html.parent.is_dir():
+            fail(f"--html {html}: folder {html.parent} does not exist")
     from h4pin import viewer
 
-    if html is not None and not html.parent.is_dir():
-        fail(f"cannot write {html}: folder {html.parent} does not exist")
     h4 = load_robot(variant, urdf)
     scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
-                        scale=scale, exaggeration=exaggeration, field=field, rotational=rotational, model=model)
+                        scale=scale, exaggeration=exaggeration, field=field, rotational=rotational, model=model,
+                        host=host)
     try:
         for line in scene.legend:
             typer.echo(line)
@@ -86,19 +157,28 @@ def view(
             time.sleep(0.5)
     except KeyboardInterrupt:
         typer.echo("stopped")
+        raise typer.Exit(128 + signal.SIGINT) from None
+    except Stopped as stop:
+        typer.echo(f"stopped ({stop})")
+        raise typer.Exit(128 + stop.signum) from None
     finally:
+        for sig in (signal.SIGINT, *STOP_SIGNALS):  # a second signal must not interrupt the cleanup
+            signal.signal(sig, signal.SIG_IGN)
         scene.close()
 
 
 def main() -> None:
     """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
     try:
+        check_arity(sys.argv[1:])
         code = app(standalone_mode=False)
     except (H4Error, ValueError, FileNotFoundError) as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        sys.exit(130)
+        sys.exit(128 + signal.SIGINT)
+    except Stopped as stop:
+        sys.exit(128 + stop.signum)
     except Exception as exc:
         # Usage errors of typer's click (vendored or not): one line instead of a usage box.
         if hasattr(exc, "format_message"):

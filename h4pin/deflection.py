@@ -31,6 +31,9 @@ from h4pin.stiffness import (
 def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consistent") -> tuple[np.ndarray, np.ndarray]:
     """Linear deflection under ``load``: plate ``dtp`` (8,) and actuator-side rotations ``dq`` (4,).
 
+    ``load`` is a force F (3,) in N at D or Gamma_ext (8,); a NaN, infinite or wrongly sized
+    load raises :class:`h4pin.LoadError`.
+
     ``dq`` is the rotation of each forearm tip about its actuator axis from control stiffness and
     bending, ``(1/kc + r/(3EI)) Gamma_act`` with ``Gamma_act = J^T R Gamma_ext`` (eqs. 10, 15).
 

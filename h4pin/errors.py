@@ -20,6 +20,10 @@ class MalformedURDFError(H4Error, ValueError):
     """A URDF cannot describe an H4: a closure, frame or spring datum is missing or inconsistent."""
 
 
+class LoadError(H4Error, ValueError):
+    """A load (force F or Gamma_ext) is malformed or not finite; the message names the argument."""
+
+
 class PoseError(H4Error, ValueError):
     """Base class of the errors about one pose (or one index of a batch of poses).
 

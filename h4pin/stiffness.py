@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from h4pin import geometry
-from h4pin.errors import ParameterError
+from h4pin.errors import LoadError, ParameterError
 from h4pin.geometry import OK, SINGULAR, STATUS_NAMES
 from h4pin.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, from_points, n_matrix
 from h4pin.model import H4Geometry
@@ -144,12 +144,12 @@ def as_load(load: Any) -> np.ndarray:
     try:
         g = np.asarray(load, dtype=float)
     except (TypeError, ValueError):
-        raise ParameterError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
+        raise LoadError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
     if g.shape == (3,):
         g = np.r_[g, np.zeros(5)]
     if g.shape != (8,) or not np.all(np.isfinite(g)):
-        raise ParameterError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
-                             f"got {load!r}")
+        raise LoadError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
+                        f"got {load!r}")
     return g
 
 

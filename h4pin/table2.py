@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from h4pin.robot import H4
+from h4pin.robot import H4, urdf_dir
 from h4pin.stiffness import TERMS, compliance
 
 #: Table II of the paper, um/N (erratum 5: the print says m/N). Rows: displacement x, y, z;
@@ -20,6 +22,15 @@ def centre_pose(h4: H4) -> np.ndarray:
     return h4.forward_geometry(CENTRE_Q)
 
 
+def source_label(h4: H4) -> str:
+    """Where the robot came from, as a reader can use it: a shipped file by its name (its folder
+    depends on the installation), anything else as given."""
+    path = Path(h4.source)
+    if path.is_absolute() and path.parent == urdf_dir().resolve():
+        return f"shipped {path.name}"
+    return h4.source
+
+
 def report(h4: H4, model: str = "paper") -> str:
     """Text report: our 3x3 block (um/N) beside the paper's, per-term split and relative gaps."""
     pose = centre_pose(h4)
@@ -27,7 +38,7 @@ def report(h4: H4, model: str = "paper") -> str:
     exact = res.translational * 1e6
     ours = np.round(exact, 1) + 0.0  # for display; + 0.0 turns -0.0 into 0.0
     lines = [f"H4 compliance at q_i = 45 deg, pose D = ({', '.join(f'{v * 1e3:.2f}' for v in pose[:3])}) mm, "
-             f"theta = {pose[3]:.3f} rad, model '{model}' ({h4.source})", ""]
+             f"theta = {pose[3]:.3f} rad, model '{model}' ({source_label(h4)})", ""]
     rows = "xyz"
 
     def block(title: str, m: np.ndarray) -> list[str]:

@@ -197,7 +197,8 @@ class _State(NamedTuple):
 
 
 def _newton(bg: BatchGeometry, q: np.ndarray, D: np.ndarray, theta: np.ndarray, free_q: bool,
-            jac0_inv: np.ndarray | None = None, tol: float = 1e-13, max_iter: int = 30) -> tuple[_State, _Pts, np.ndarray]:
+            jac0_inv: np.ndarray | None = None, tol: float = 1e-13,
+            max_iter: int = 30) -> tuple[_State, _Pts, np.ndarray]:
     """As :func:`h4pin.geometry._newton`, started from the rigid state (q, D, theta) (..., pairs).
 
     With ``jac0_inv`` (the inverse Jacobian of the nominal robot at each pair's pose), the chord

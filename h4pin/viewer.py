@@ -40,7 +40,7 @@ import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 from tqdm import tqdm
 
-from h4pin import geometry
+from h4pin import geometry, meshcat_server
 from h4pin.deflection import deflected_configuration, deflection
 from h4pin.robot import H4
 from h4pin.stiffness import as_load, compliance
@@ -98,27 +98,35 @@ class Scene:
     Args:
         h4: The robot.
         vis: An existing ``meshcat.Visualizer`` to draw into (then :meth:`close` leaves its
-            server alone). Default: start a new server, quietly.
+            server alone). Default: start a new server (:mod:`h4pin.meshcat_server`), quietly.
+        host: Interface the new server's web page listens on: ``"127.0.0.1"`` (default, this
+            machine only), or e.g. ``"0.0.0.0"`` to let other machines connect. The server's
+            command socket stays on 127.0.0.1. Ignored with ``vis``.
     """
 
-    def __init__(self, h4: H4, vis: meshcat.Visualizer | None = None):
+    def __init__(self, h4: H4, vis: meshcat.Visualizer | None = None, host: str = meshcat_server.LOCALHOST):
         self.h4 = h4
-        self._owns_server = vis is None
-        if vis is None:
-            with contextlib.redirect_stdout(io.StringIO()):
-                vis = meshcat.Visualizer()
-        self.vis = vis
+        self._server = None
         self.legend: list[str] = []
-        self.robot = MeshcatVisualizer(h4.model, h4.collision_model, h4.visual_model)
-        self.robot.initViewer(viewer=vis)
-        self.robot.loadViewerModel(rootNodeName="h4")
-        self.robot.displayCollisions(False)
-        self.robot.displayVisuals(True)
-        vis["/Grid"].set_property("visible", False)
-        vis["/Axes"].set_property("visible", False)
-        # The camera orbits the scene origin: lift the drawing so the robot's middle sits there.
-        self.vis.set_transform(mt.translation_matrix([0.0, 0.0, 0.33]))
-        self.look_at(np.array([0.3, -0.78, 0.12]))
+        try:
+            if vis is None:
+                self._server, zmq_url, _ = meshcat_server.start(host)
+                with contextlib.redirect_stdout(io.StringIO()):
+                    vis = meshcat.Visualizer(zmq_url=zmq_url)
+            self.vis = vis
+            self.robot = MeshcatVisualizer(h4.model, h4.collision_model, h4.visual_model)
+            self.robot.initViewer(viewer=vis)
+            self.robot.loadViewerModel(rootNodeName="h4")
+            self.robot.displayCollisions(False)
+            self.robot.displayVisuals(True)
+            vis["/Grid"].set_property("visible", False)
+            vis["/Axes"].set_property("visible", False)
+            # The camera orbits the scene origin: lift the drawing so the robot's middle sits there.
+            self.vis.set_transform(mt.translation_matrix([0.0, 0.0, 0.33]))
+            self.look_at(np.array([0.3, -0.78, 0.12]))
+        except BaseException:
+            self.close()
+            raise
 
     @property
     def url(self) -> str:
@@ -266,20 +274,19 @@ class Scene:
         return path
 
     def close(self) -> None:
-        """Stop the meshcat server this scene started (``Visualizer.close`` does not)."""
-        if not self._owns_server:
+        """Stop the meshcat server this scene started (``Visualizer.close`` does not); idempotent."""
+        server, self._server = self._server, None
+        if server is None:
             return
-        window = self.vis.window
-        window.zmq_socket.close(linger=0)
-        proc = window.server_proc
-        if proc is not None and proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=5)
-            except Exception:
-                proc.kill()
-                proc.wait(timeout=5)
-        self._owns_server = False
+        vis = getattr(self, "vis", None)
+        if vis is not None:
+            vis.window.zmq_socket.close(linger=0)
+        meshcat_server.stop(server)
+
+    @property
+    def server_pid(self) -> int | None:
+        """Process id of the meshcat server this scene owns (``None`` once closed or with ``vis``)."""
+        return None if self._server is None else self._server.pid
 
     def __enter__(self) -> Scene:
         return self
@@ -298,7 +305,8 @@ def workspace_grid(h4: H4, n: int = 5, span: float = 0.2, heights: tuple[float, 
 
 def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None, *, scale: float | None = None,
          exaggeration: float | None = None, field: bool = False, rotational: bool = False,
-         model: str = "consistent", vis: meshcat.Visualizer | None = None) -> Scene:
+         model: str = "consistent", vis: meshcat.Visualizer | None = None,
+         host: str = meshcat_server.LOCALHOST) -> Scene:
     """Draw the H4 at ``pose`` with its compliance ellipsoid, and optionally more.
 
     Args:
@@ -311,6 +319,7 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
         rotational: Also draw the rotational compliance ellipsoid.
         model: "consistent" (default, symmetric K) or "paper".
         vis: Existing meshcat visualizer (e.g. in Jupyter); default: a new server.
+        host: Interface a new server listens on (default 127.0.0.1, this machine only).
 
     Returns:
         The :class:`Scene` (``scene.url``, ``scene.write_html(path)``, ``scene.close()``).
@@ -324,7 +333,7 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
     compliance(h4, x, model)  # fail before starting a server
     if load is not None:
         as_load(load)
-    scene = Scene(h4, vis)
+    scene = Scene(h4, vis, host)
     try:
         scene.pose(x)
         scene.ellipsoid(x, model, scale, rotational)
@@ -360,4 +369,5 @@ def screenshot(html: str | Path, png: str | Path, size: tuple[int, int] = (1000,
         subprocess.run(args, capture_output=True, timeout=timeout, check=False)
     if not png.is_file():
         raise RuntimeError(f"Chromium did not write {png}")
+    os.chmod(png, 0o644)  # like any file h4pin writes, whatever Chromium's umask
     return png

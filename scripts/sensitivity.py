@@ -115,6 +115,7 @@ def plot(results: dict[str, np.ndarray], path: Path) -> None:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=90)
+        os.chmod(tmp, 0o644)  # mkstemp makes it 0600
         os.replace(tmp, path)
     finally:
         plt.close(fig)

@@ -1,7 +1,14 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Shared fixtures: the shipped robots, the centre pose and a deterministic set of poses."""
+"""Shared fixtures: the shipped robots, the centre pose, a deterministic set of poses, and a
+check that a test leaves none of the processes it started running."""
 
 from __future__ import annotations
+
+import os
+import signal
+import time
+import uuid
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -40,3 +47,44 @@ def sample_poses(h4: h4pin.H4, n: int, seed: int = 0) -> np.ndarray:
 @pytest.fixture(scope="session")
 def poses(proto) -> np.ndarray:
     return sample_poses(proto, 12)
+
+
+PROCESS_TAG = "H4PIN_TEST_PROCESS_TAG"
+
+
+def tagged_processes(tag: str) -> dict[int, str]:
+    """Live processes (pid -> command line) whose environment holds ``PROCESS_TAG=tag``.
+
+    Every process a test starts inherits the tag, even after its parent died and it was
+    re-parented, so this finds exactly the test's own processes, not the machine's."""
+    needle = f"{PROCESS_TAG}={tag}".encode()
+    out = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            if needle not in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0"):
+                continue
+            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
+                continue  # exited, not yet reaped by its parent
+            out[int(pid)] = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+    return out
+
+
+@pytest.fixture
+def no_process_left(monkeypatch):
+    """Tag the processes this test starts; afterwards none of them may still run (10 s grace).
+
+    Yields the tag. Leftovers are killed (they are this test's own) and the test fails."""
+    tag = uuid.uuid4().hex
+    monkeypatch.setenv(PROCESS_TAG, tag)
+    yield tag
+    deadline = time.monotonic() + 10
+    while (left := tagged_processes(tag)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    for pid in left:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
+    assert not left, f"processes left running: {left}"

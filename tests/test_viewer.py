@@ -3,16 +3,24 @@
 
 from __future__ import annotations
 
+import contextlib
+import html.parser
+import ipaddress
 import os
 import shutil
+import signal
+import socket
+import stat
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import matplotlib.image
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import tagged_processes
 
 from h4pin import viewer
 from h4pin.deflection import deflected_configuration
@@ -23,25 +31,62 @@ needs_chromium = pytest.mark.skipif(shutil.which("chromium") is None,
                                     reason="needs Debian's chromium (apt-get install chromium)")
 
 
-def our_processes(pattern: str) -> list[int]:
-    """PIDs of processes whose command line contains ``pattern`` (read from /proc)."""
-    out = []
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="ignore")
-        except OSError:
-            continue
-        if pattern in cmd and int(pid) != os.getpid():
-            out.append(int(pid))
+pytestmark = pytest.mark.usefixtures("no_process_left")
+
+
+def _address(hex_address: str) -> str:
+    """An address of /proc/net/tcp{,6} (host byte order, little-endian words) as text."""
+    raw = bytes.fromhex(hex_address)
+    words = b"".join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))
+    return str(ipaddress.ip_address(words))
+
+
+def listening(pid: int) -> set[tuple[str, int]]:
+    """(address, port) of the TCP sockets process ``pid`` listens on, from /proc (no psutil)."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        with contextlib.suppress(OSError):
+            target = os.readlink(fd)
+            if target.startswith("socket:["):
+                inodes.add(target[len("socket:["):-1])
+    out = set()
+    for table in ("tcp", "tcp6"):
+        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
+            fields = line.split()
+            local, state, inode = fields[1], fields[3], fields[9]
+            if state == "0A" and inode in inodes:  # 0A: LISTEN
+                address, port = local.split(":")
+                out.add((_address(address), int(port, 16)))
     return out
 
 
-@pytest.fixture(autouse=True)
-def no_server_left_behind():
-    before = set(our_processes("meshcat.servers.zmqserver"))
-    yield
-    assert set(our_processes("meshcat.servers.zmqserver")) <= before, "a meshcat server was left running"
-    assert not our_processes("h4pin-chromium-"), "a Chromium process was left running"
+def children(pid: int) -> dict[int, str]:
+    """Direct children of ``pid`` (pid -> command line), from /proc/<n>/stat."""
+    out = {}
+    for n in filter(str.isdigit, os.listdir("/proc")):
+        with contextlib.suppress(OSError):
+            if int(Path(f"/proc/{n}/stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                out[int(n)] = Path(f"/proc/{n}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    return out
+
+
+def alive(pid: int) -> bool:
+    """The process exists and has not exited (a zombie has)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_listening_parses_proc_net_tcp():
+    """The /proc reader against sockets this test opens itself, on known addresses."""
+    with socket.socket() as a, socket.socket(socket.AF_INET6) as b:
+        a.bind(("127.0.0.1", 0))
+        a.listen()
+        b.bind(("::1", 0))
+        b.listen()
+        found = listening(os.getpid())
+        assert ("127.0.0.1", a.getsockname()[1]) in found and ("::1", b.getsockname()[1]) in found
 
 
 def test_ellipsoid_axes_are_deflection_directions(proto, poses):
@@ -67,7 +112,22 @@ def test_ghost_moves_d_by_the_exaggerated_deflection(proto, poses):
 def test_scene_legend_states_the_scales(proto, centre):
     with viewer.show(proto, centre, load=[0, 0, -10], scale=2.0, exaggeration=100.0) as scene:
         text = " ".join(scene.legend)
+        pid = scene.server_pid
+        ports = listening(pid)
+        assert {address for address, _ in ports} == {"127.0.0.1"}, ports  # this machine only, by default
+        web_port = int(scene.url.split(":")[2].split("/")[0])
+        assert ("127.0.0.1", web_port) in ports, (scene.url, ports)
     assert "1 um/N drawn as 2 mm" in text and "x100" in text
+    assert not alive(pid) and scene.server_pid is None
+
+
+def test_scene_refuses_a_bad_load_before_starting_a_server(proto, centre, no_process_left):
+    from h4pin import LoadError
+
+    for bad in ([0, 0, np.nan], [0, 0, -10, 0], "ten newtons"):
+        with pytest.raises(LoadError, match="load"):
+            viewer.show(proto, centre, load=bad)
+    assert not tagged_processes(no_process_left)
 
 
 def _render(scene: viewer.Scene, tmp: Path, name: str) -> np.ndarray:
@@ -97,26 +157,89 @@ def test_browser_draws_the_robot_and_the_ellipsoid(proto, centre, tmp_path):
     assert rows.mean() > 0.5 * robot.shape[0], "the ellipsoid is not at the plate, below the actuators"
 
 
-def run_cli(*args: str) -> subprocess.CompletedProcess:
+def run_cli(*args: str, umask: int | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "h4pin.cli", *args], capture_output=True, text=True, cwd=ROOT,
-                          timeout=120)
+                          timeout=120, preexec_fn=None if umask is None else (lambda: os.umask(umask)))
+
+
+class _Links(html.parser.HTMLParser):
+    """Every URL-valued attribute of a page (script and style contents are not tags)."""
+
+    ATTRIBUTES = {"src", "href", "srcset", "data", "action", "poster", "background", "formaction"}
+
+    def __init__(self):
+        super().__init__()
+        self.urls: list[str] = []
+        self.inline_script_chars = 0
+        self._in_script = False
+
+    def handle_starttag(self, tag, attrs):
+        self.urls += [value or "" for name, value in attrs if name in self.ATTRIBUTES]
+        self._in_script = tag == "script"
+
+    def handle_endtag(self, tag):
+        self._in_script = False
+
+    def handle_data(self, data):
+        if self._in_script:
+            self.inline_script_chars += len(data)
+
+
+def remote_references(page: str) -> tuple[list[str], int]:
+    """URL attributes of the page that would need the network, and the size of its inline scripts."""
+    parser = _Links()
+    parser.feed(page)
+    remote = [u for u in parser.urls if u.strip().lower().startswith(("http:", "https:", "//", "ftp:", "ws:", "wss:"))]
+    return remote, parser.inline_script_chars
+
+
+def test_remote_reference_check_catches_a_remote_script():
+    """The page check itself: a remote script or stylesheet is found, a data: URL is not."""
+    page = ('<html><head><script src="http://cdn.example/three.js"></script><link href="//x.org/a.css">'
+            '</head><body><img src="data:image/png;base64,AAAA"><script>var a = "http://not.a.tag";</script>'
+            '</body></html>')
+    remote, inline = remote_references(page)
+    assert remote == ["http://cdn.example/three.js", "//x.org/a.css"] and inline == len('var a = "http://not.a.tag";')
 
 
 def test_cli_writes_a_self_contained_page(tmp_path):
-    out = run_cli("view", "--html", str(tmp_path / "h4.html"), "--load", "0", "0", "-10", "--field")
+    out = run_cli("view", "--html", str(tmp_path / "h4.html"), "--load", "0", "0", "-10", "--field", umask=0o077)
     assert out.returncode == 0, out.stderr
     page = (tmp_path / "h4.html").read_text()
     assert "h4pin-legend" in page and "x100" in out.stdout and "field: 50 of 50 poses" in out.stdout
-    assert "http://" not in page.split("<script")[0]  # nothing to fetch before the inlined scripts
+    remote, inline = remote_references(page)
+    assert remote == [], f"the page fetches {remote}"
+    assert inline > 100_000  # three.js and meshcat are inlined, not linked
     assert [p.name for p in tmp_path.iterdir()] == ["h4.html"]
+    assert stat.S_IMODE((tmp_path / "h4.html").stat().st_mode) == 0o644  # even under umask 077
+
+
+@needs_chromium
+def test_screenshot_is_world_readable(proto, centre, tmp_path):
+    with viewer.Scene(proto) as scene:
+        scene.pose(centre)
+        page = scene.write_html(tmp_path / "h4.html")
+    old = os.umask(0o077)
+    try:
+        png = viewer.screenshot(page, tmp_path / "h4.png", size=(200, 150))
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(png.stat().st_mode) == 0o644
 
 
 @pytest.mark.parametrize(
     ("args", "message"),
     [(["--pose", "0", "0", "-0.9", "0"], "cannot reach"),
      (["--variant", "symmetric"], "singular"),
-     (["--pose", "0", "0"], "requires 4 arguments"),
-     (["--load", "0", "0", "x"], "Invalid value for '--load'"),
+     (["--pose", "0", "0"], "--pose takes 4 numbers X Y Z THETA (m, rad), got 2: 0 0"),
+     (["--pose", "0", "0", "-0.6", "0", "0.1"], "--pose takes 4 numbers X Y Z THETA (m, rad), got 5"),
+     (["--pose", "0", "0", "nan", "0"], "--pose must be finite numbers, got 0 0 nan 0"),
+     (["--load", "0", "0", "x"], "--load takes 3 numbers FX FY FZ (N), got 2: 0 0"),
+     (["--load", "0", "0", "-inf"], "--load must be finite"),
+     (["--scale", "0"], "--scale must be a finite number > 0 (mm per um/N), got 0"),
+     (["--scale", "-2"], "--scale must be a finite number > 0 (mm per um/N), got -2"),
+     (["--exaggeration", "nan"], "--exaggeration must be a finite number > 0, got nan"),
+     (["--exaggeration", "inf"], "--exaggeration must be a finite number > 0, got inf"),
      (["--model", "exact"], "model must be one of")],
 )
 def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
@@ -124,27 +247,63 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
     out = run_cli("view", "--html", str(target), *args)
     assert out.returncode == 2
     assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "Traceback" not in out.stderr
     assert not target.exists() and list(tmp_path.iterdir()) == []
 
 
-def test_cli_server_stops_cleanly_on_ctrl_c():
-    """Without --html: the URL is printed, and SIGINT stops the command and its meshcat server."""
-    import signal
-    import time
+@pytest.mark.parametrize("where", ["folder", "missing folder"])
+def test_cli_html_must_name_a_file_in_an_existing_folder(tmp_path, where):
+    target = tmp_path if where == "folder" else tmp_path / "nope" / "h4.html"
+    out = run_cli("view", "--html", str(target))
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert out.stderr.startswith(f"error: --html {target}")
+    assert ("is a folder" if where == "folder" else "does not exist") in out.stderr
+    assert list(tmp_path.iterdir()) == []
 
-    proc = subprocess.Popen([sys.executable, "-m", "h4pin.cli", "view"], stdout=subprocess.PIPE,
+
+def start_view(*args: str) -> tuple[subprocess.Popen, int]:
+    """``h4pin view`` serving a scene; returns the command and its meshcat server's pid."""
+    proc = subprocess.Popen([sys.executable, "-m", "h4pin.cli", "view", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    deadline = time.monotonic() + 60
+    line = ""
+    while "meshcat: http" not in line and time.monotonic() < deadline and proc.poll() is None:
+        line = proc.stdout.readline()
+    assert "meshcat: http" in line, proc.stderr.read() if proc.poll() is not None else "no URL printed"
+    servers = [pid for pid, cmd in children(proc.pid).items() if "h4pin.meshcat_server" in cmd]
+    assert len(servers) == 1, children(proc.pid)
+    return proc, servers[0]
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "host"),
+    [(signal.SIGINT, 130, None), (signal.SIGTERM, 143, None), (signal.SIGHUP, 129, "0.0.0.0")],
+)
+def test_cli_server_stops_on_signals(sig, code, host):
+    """Without --html: the URL is printed; the server listens on 127.0.0.1 unless --host says
+    otherwise; SIGINT (Ctrl-C), SIGTERM and SIGHUP stop the command and its meshcat server,
+    with exit status 128 + the signal's number."""
+    proc, server = start_view(*([] if host is None else ["--host", host]))
     try:
-        deadline = time.monotonic() + 60
-        line = ""
-        while "meshcat: http" not in line and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-        assert "meshcat: http" in line, proc.stderr.read() if proc.poll() is not None else "no URL printed"
-        assert our_processes("meshcat.servers.zmqserver"), "no meshcat server is running"
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=30) == 0
+        ports = listening(server)
+        assert {address for address, _ in ports} == {host or "127.0.0.1", "127.0.0.1"}, ports
+        assert len(ports) == 2  # the page (on --host) and meshcat's command socket (always local)
+        proc.send_signal(sig)
+        assert proc.wait(timeout=30) == code
         assert "stopped" in proc.stdout.read()
+        assert not alive(server), "the meshcat server outlived the command"
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_server_stops_when_the_viewer_is_killed():
+    """SIGKILL leaves no chance to clean up: the server notices its parent is gone and stops."""
+    proc, server = start_view()
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while alive(server) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not alive(server), "the meshcat server outlived a killed viewer"

@@ -1,0 +1,217 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The README runs as written: its Python blocks, its shell lines and its printed sample output.
+
+The rules, so that the README can be rewritten without touching this file:
+
+* ```` ```python ```` blocks run in order, in one namespace, in a fresh folder (the files they write
+  land there), under umask 077. Afterwards every :class:`h4pin.viewer.Scene` left in the
+  namespace is closed, no process they started may still run, and every file they wrote is
+  mode 0644.
+* ```` ```bash ```` blocks: each line is a command; a trailing ``# comment`` documents it. ``&&``
+  chains run step by step. ``h4pin`` (also ``.venv/bin/h4pin``) runs as ``<this python> -m
+  h4pin.cli``; ``python``, ``python3`` and ``.venv/bin/python`` run as this interpreter. Steps not
+  run, by rule (the test is reported as skipped with the reason):
+
+  - environment set-up, ``python3 -m venv`` and ``pip install``: they need the network, and the
+    tests already run in the environment they make;
+  - the test suite itself (``python -m pytest``);
+  - a server: ``h4pin view`` without ``--html``, unless its comment says it fails ``(exit N)`` with
+    N != 0 (it then fails before any server starts; a time limit guards against a hang).
+
+  A comment ``(exit N)`` sets the expected exit status (default 0). A comment ``# error: A ... B``
+  requires each fragment (A, B) on stderr.
+* ```` ```console ```` blocks: ``$ command`` lines run as above, and the lines after each, up to
+  the next ``$``, must equal the command's standard output (trailing spaces aside).
+* Other blocks (```` ```text ````, ```` ```xml ````, untagged) are not run.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import signal
+import stat
+import subprocess
+import sys
+from pathlib import Path
+from typing import NamedTuple
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+FENCE = re.compile(r"^(?P<fence>`{3,}|~{3,})\s*(?P<info>[^\s`]*)")
+
+
+class Block(NamedTuple):
+    lang: str
+    line: int  # README line of the block's first content line (1-based)
+    text: str
+
+
+def blocks(text: str) -> list[Block]:
+    """Fenced code blocks of a Markdown text, with their info word (``""`` if untagged)."""
+    out, lines, n = [], text.splitlines(), 0
+    while n < len(lines):
+        m = FENCE.match(lines[n])
+        if not m:
+            n += 1
+            continue
+        fence, start = m["fence"], n + 1
+        end = start
+        while end < len(lines) and not lines[end].startswith(fence):
+            end += 1
+        out.append(Block(m["info"].lower(), start + 1, "\n".join(lines[start:end])))
+        n = end + 1
+    return out
+
+
+ALL = blocks(README.read_text(encoding="utf-8"))
+
+
+class Command(NamedTuple):
+    where: str  # README.md:<line>
+    text: str  # the command as written (no comment)
+    comment: str
+    expected_stdout: str | None  # console blocks only
+
+
+def split_comment(line: str) -> tuple[str, str]:
+    """A shell line without its trailing ``# comment``, and the comment."""
+    quote = None  # a '#' starting a word outside quotes starts the comment
+    for n, ch in enumerate(line):
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "#" and (n == 0 or line[n - 1].isspace()):
+            return line[:n].strip(), line[n + 1:].strip()
+    return line.strip(), ""
+
+
+def shell_commands() -> list[Command]:
+    out = []
+    for b in ALL:
+        if b.lang not in ("bash", "sh", "shell"):
+            continue
+        for k, line in enumerate(b.text.splitlines()):
+            text, comment = split_comment(line)
+            if text:
+                out.append(Command(f"README.md:{b.line + k}", text, comment, None))
+    return out
+
+
+def console_commands() -> list[Command]:
+    out = []
+    for b in ALL:
+        if b.lang != "console":
+            continue
+        lines = b.text.splitlines()
+        starts = [k for k, line in enumerate(lines) if line.startswith("$ ")]
+        for a, k in enumerate(starts):
+            stop = starts[a + 1] if a + 1 < len(starts) else len(lines)
+            text, comment = split_comment(lines[k][2:])
+            out.append(Command(f"README.md:{b.line + k}", text, comment, "\n".join(lines[k + 1:stop])))
+    return out
+
+
+def argv(step: str) -> tuple[list[str] | None, str]:
+    """The step as an argv for this environment, or None and the rule that skips it."""
+    words = shlex.split(step)
+    prog = words[0].removeprefix(".venv/bin/")
+    if prog == "pip" or (prog.startswith("python") and words[1:3] == ["-m", "venv"]):
+        return None, "sets up an environment (needs the network; the tests run in that environment)"
+    if prog.startswith("python") and words[1:3] == ["-m", "pytest"]:
+        return None, "runs the test suite itself"
+    if prog == "h4pin":
+        return [sys.executable, "-m", "h4pin.cli", *words[1:]], ""
+    if prog in ("python", "python3"):
+        return [sys.executable, *words[1:]], ""
+    return words, ""
+
+
+def expected_status(comment: str) -> int:
+    m = re.search(r"\(exit (\d+)\)", comment)
+    return int(m[1]) if m else 0
+
+
+def starts_a_server(args: list[str], comment: str) -> bool:
+    return args[2:4] == ["h4pin.cli", "view"] and "--html" not in args and expected_status(comment) == 0
+
+
+def run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    proc = subprocess.Popen(args, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, preexec_fn=lambda: os.umask(0o077))
+    try:
+        out, err = proc.communicate(timeout=300)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+        pytest.fail(f"{' '.join(args)} did not finish in 300 s: {err}")
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+def check_written_files(folder: Path) -> None:
+    """Everything written under ``folder`` (under umask 077) is mode 0644."""
+    modes = {str(p.relative_to(folder)): oct(stat.S_IMODE(p.stat().st_mode)) for p in folder.rglob("*") if p.is_file()}
+    assert all(m == "0o644" for m in modes.values()), modes
+
+
+def test_the_readme_has_what_these_tests_check():
+    """The rules above find the README's blocks (a rewrite that breaks them fails here)."""
+    assert [b for b in ALL if b.lang == "python"], "no ```python block"
+    assert any(c.text == "h4pin table2" for c in console_commands()), "no `$ h4pin table2` sample"
+    runnable = [c for c in shell_commands() if any(argv(s)[0] for s in c.text.split("&&"))]
+    assert len(runnable) >= 3
+
+
+def test_python_blocks_run_as_written(tmp_path, monkeypatch, no_process_left):
+    from h4pin import viewer
+
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "__readme__"}
+    old = os.umask(0o077)
+    try:
+        for b in (b for b in ALL if b.lang == "python"):
+            code = compile("\n" * (b.line - 1) + b.text, str(README), "exec")  # tracebacks name README lines
+            exec(code, namespace)
+    finally:
+        os.umask(old)
+        for value in list(namespace.values()):
+            if isinstance(value, viewer.Scene):
+                value.close()
+    check_written_files(tmp_path)
+
+
+@pytest.mark.parametrize("command", shell_commands(), ids=lambda c: f"{c.where} {c.text}")
+def test_shell_lines_run(command, tmp_path, no_process_left):
+    ran = []
+    for step in command.text.split("&&"):
+        args, rule = argv(step.strip())
+        if args is None:
+            continue
+        if starts_a_server(args, command.comment):
+            rule = "starts a server (h4pin view without --html)"
+            continue
+        out = run(args, tmp_path)
+        assert out.returncode == expected_status(command.comment), (step, out.stdout, out.stderr)
+        if command.comment.startswith("error:"):
+            for fragment in filter(None, (f.strip() for f in command.comment.split("(exit")[0].split("..."))):
+                assert fragment in out.stderr, (fragment, out.stderr)
+        ran.append(step)
+    if not ran:
+        pytest.skip(f"not run by rule: {rule}")
+    check_written_files(tmp_path)
+
+
+@pytest.mark.parametrize("command", console_commands(), ids=lambda c: f"{c.where} {c.text}")
+def test_printed_samples_match_the_commands(command, tmp_path, no_process_left):
+    args, rule = argv(command.text)
+    assert args is not None, f"a console sample must be runnable ({rule})"
+    out = run(args, tmp_path)
+    assert out.returncode == expected_status(command.comment), out.stderr
+    printed = [line.rstrip() for line in out.stdout.rstrip("\n").splitlines()]
+    sample = [line.rstrip() for line in command.expected_stdout.rstrip("\n").splitlines()]
+    assert printed == sample, "README sample differs from the output:\n" + "\n".join(printed)
