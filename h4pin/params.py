@@ -3,7 +3,7 @@
 
 :class:`H4Params` holds every number the model of Company, Pierrot and Fauroux (ICRA 2005)
 needs. Its defaults are the prototype of section V.A of the paper, converted to SI, with the
-values the paper does not state filled in as documented in ``shared/H4-NOTES.md``. Each
+values the paper does not state filled in as documented in ``docs/parameters.md``. Each
 default that is not printed in the paper says so, with its reason, next to the field.
 
 Conventions (see the README):
@@ -30,12 +30,12 @@ LEG_LATERAL = np.array([0, 0, 1, 1])
 _MM = 1e-3
 
 # Section V.A of the paper, with P_1 = (-200, -60, 0) mm instead of the printed (+200, -60, 0):
-# a sign typo (H4-NOTES). With it every u_i x z points outward, the layout is mirror-symmetric
+# a sign typo (docs/parameters.md). With it every u_i x z points outward, the layout is mirror-symmetric
 # about y = 0 and q_i = 45 deg is a true centre pose.
 _P = np.array([[-200.0, 60.0, 60.0, -200.0], [-60.0, -200.0, 200.0, 60.0], [0.0, 0.0, 0.0, 0.0]]) * _MM
 _U = np.array([[0.0, 1.0, -1.0, 0.0], [-1.0, 0.0, 0.0, -1.0], [0.0, 0.0, 0.0, 0.0]])
 _DB = np.array([[-60.0, 60.0, 60.0, -60.0], [-60.0, -60.0, 60.0, 60.0], [50.0, 50.0, 50.0, 50.0]]) * _MM
-# Not in the paper: C_k is the middle of lateral bar k, so the plate is a true "H" (H4-NOTES).
+# Not in the paper: C_k is the middle of lateral bar k, so the plate is a true "H" (docs/parameters.md).
 # Only its x, y matter (the revolute axis is z).
 _DC = np.array([[0.0, 0.0], [-60.0, 60.0], [50.0, 50.0]]) * _MM
 
