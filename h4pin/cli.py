@@ -167,6 +167,39 @@ def view(
         scene.close()
 
 
+@app.command()
+def tolerance(
+    robots: int = typer.Option(1000, help="robots drawn"),
+    seed: int = typer.Option(0, help="seed of the draws"),
+    sigma: list[str] = typer.Option([], metavar="NAME=METRES",
+                                    help="sigma of one tolerance in m (forearm, A0, b, P, C0, l, mismatch)"),
+    sensitivity: bool = typer.Option(True, help="also run one tolerance at a time"),
+    figure: Path | None = typer.Option(None, help="write the histograms to this PNG"),
+    model: str = typer.Option("paper", help="'paper' or 'consistent'"),
+) -> None:
+    """Tolerance study: compliance and static pose error of robots with manufacturing errors."""
+    from h4pin import tolerance as tol
+    from h4pin.errors import ParameterError
+    from h4pin.robot import load
+
+    sigmas: dict[str, float] = {}
+    for item in sigma:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ParameterError(f"--sigma must be NAME=METRES, got {item!r}")
+        sigmas[name.strip()] = value  # type: ignore[assignment]  # checked by tol.check_sigmas
+    sigmas = tol.check_sigmas(sigmas)
+    if figure is not None and not figure.parent.is_dir():
+        fail(f"cannot write {figure}: folder {figure.parent} does not exist")
+    h4 = load("prototype")
+    res = tol.study(h4, n_robots=robots, sigmas=sigmas, seed=seed, model=model, progress=True)
+    sens = tol.sensitivity(h4, n_robots=min(robots, 1000), sigmas=sigmas, seed=seed, model=model) if sensitivity \
+        else None
+    typer.echo(tol.report(res, sens))
+    if figure is not None:
+        typer.echo(f"wrote {tol.write_figure(res, figure)}")
+
+
 def main() -> None:
     """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
     try:

@@ -102,6 +102,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=100_000, help="poses in the batch row")
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs per row")
+    parser.add_argument("--tolerance", action="store_true", help="also time the tolerance study (10 000 x 100)")
     args = parser.parse_args()
     h4 = h4pin.load("prototype")
     rng = np.random.default_rng(0)
@@ -138,6 +139,23 @@ def main() -> None:
     ]
     for name, t in rows:
         print(f"| {name:<52} | {1 / t:>10.0f} | {t * 1e6:>9.1f} | {t_naive / t:>7.1f}x |")
+    if args.tolerance:
+        bench_tolerance()
+
+
+def bench_tolerance(n_robots: int = 10_000, n_poses: int = 100) -> None:
+    """Time the tolerance study (:func:`h4pin.tolerance.study`): robots x poses around the centre."""
+    from h4pin import tolerance
+
+    h4 = h4pin.load("prototype")
+    rng = np.random.default_rng(0)
+    poses = centre_pose(h4) + rng.uniform(-1, 1, (n_poses, 4)) * [0.05, 0.05, 0.05, 0.2]
+    t0 = time.perf_counter()
+    res = tolerance.study(h4, poses, n_robots=n_robots)
+    t = time.perf_counter() - t0
+    pairs = n_robots * n_poses
+    print(f"\ntolerance study: {n_robots} robots x {n_poses} poses in {t:.1f} s ({t / pairs * 1e6:.1f} us/pair, "
+          f"{res.converged.mean() * 100:.2f} % converged)")
 
 
 if __name__ == "__main__":
