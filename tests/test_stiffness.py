@@ -25,7 +25,7 @@ def test_result_structure(proto, centre):
 
 
 def test_independent_implementation_numbers(proto, centre):
-    """H4-NOTES: an independent implementation gets these at q_i = 45 deg (um/N)."""
+    """docs/parameters.md: an independent implementation gets these at q_i = 45 deg (um/N)."""
     res = compliance(proto, centre)
     np.testing.assert_allclose(res.translational * 1e6, [[33.6, 0, 15.9], [0, 16.6, 0], [15.9, 0, 14.2]], atol=0.05)
     split = {t: res.terms[t][0, 0] * 1e6 for t in TERMS}
