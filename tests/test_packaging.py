@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import hashlib
+import importlib
 import importlib.util
 import os
 import re
@@ -134,3 +135,35 @@ def test_scripts_work_from_the_unpacked_sdist(unpacked_sdist, tmp_path):
         helped = run([str(top / "scripts" / f"{name}.py"), "--help"], tmp_path, top)
         assert helped.returncode == 0 and "usage:" in helped.stdout, helped.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def resolve(dotted: str) -> object:
+    """The object a dotted name ``h4pin.x.y`` names: the longest importable module, then attributes."""
+    parts = dotted.split(".")
+    for n in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:n]))
+        except ImportError:
+            continue
+        for attr in parts[n:]:
+            obj = getattr(obj, attr)
+        return obj
+    raise ImportError(dotted)
+
+
+def test_every_cited_h4pin_name_exists():
+    """Every ``h4pin.<name>`` the package's docstrings, the scripts, docs/ and the README cite
+    resolves (e.g. ``h4pin.compliance``, which once existed only in ``h4pin.stiffness``)."""
+    sources = [*sorted((ROOT / "h4pin").glob("*.py")), *sorted((ROOT / "scripts").glob("*.py")),
+               *sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
+    cited = set()
+    for path in sources:
+        cited |= {m.rstrip(".") for m in re.findall(r"\bh4pin\.[A-Za-z_][\w.]*", path.read_text(encoding="utf-8"))}
+    assert {"h4pin.compliance", "h4pin.load", "h4pin.viewer.Scene"} <= cited
+    missing = []
+    for name in sorted(cited):
+        try:
+            resolve(name)
+        except (ImportError, AttributeError):
+            missing.append(name)
+    assert not missing, f"cited but not defined: {missing}"
