@@ -213,6 +213,8 @@ def main() -> None:
     except Stopped as stop:
         sys.exit(128 + stop.signum)
     except Exception as exc:
+        if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):  # click's Abort after Ctrl-C
+            sys.exit(128 + signal.SIGINT)
         # Usage errors of typer's click (vendored or not): one line instead of a usage box.
         if hasattr(exc, "format_message"):
             if exc.format_message():  # empty after the help printed for a bare `h4pin`

@@ -40,7 +40,7 @@ class DeformedH4:
     """An H4 at a rigid pose whose springs can be deformed; solves the plate non-linearly.
 
     Args:
-        g: The robot's geometry (:attr:`h4pin.H4.geometry`).
+        g: The robot's geometry (``h4.geometry`` of an :class:`h4pin.H4`).
         pose: The reference pose [x, y, z, theta] (m, rad), assembled by the inverse geometry.
     """
 

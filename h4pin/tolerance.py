@@ -19,7 +19,7 @@ For every robot and pose the study gives
   (its inverse geometry, by Newton since a toleranced parallelogram tilts the plate);
 * the static pose error: the controller commands the nominal inverse geometry q of the pose,
   the perturbed robot sits at its forward geometry for that q (Newton, q fixed). The error is
-  [dx, dy, dz, dtheta] (m, rad; theta as ``atan2(R10, R00)``, like
+  [dx, dy, dz, dtheta] (m, rad; theta of R = exp(tilt) Rz(theta), as
   :func:`h4pin.geometry.forward_geometry`) and the plate tilt (rad, norm of the x, y rotation
   vector).
 
@@ -298,17 +298,16 @@ def _compliance_tt(bg: BatchGeometry, pts: _Pts, model: str) -> np.ndarray:
     else:
         load = np.swapaxes(g3, -1, -2)
     # M2 M4 (matrices.n_matrix): entry (2i+j, 2i+j') = (w_ij . (p_ij x r_i)) c_ij', with
-    # p_ij = P_i - A_ij, r_i unit A_i -> P_i, c_ij = (p_ij x r_i) . unit(B_i - A_i).
+    # p_ij = P_i - A_ij, r_i unit A_i -> P_i, c_ij = (p_ij x r_i) . unit(B_ij - A_ij).
     aij = pts.Aij.reshape(*shape, 4, 2, 3)
-    bi = pts.Bij.reshape(*shape, 4, 2, 3).mean(axis=-2)
     ai = aij.mean(axis=-2)
     p = bg.P[..., None, :] - aij
     ri = bg.P - ai
     ri = ri / np.linalg.norm(ri, axis=-1, keepdims=True)
-    wl = bi - ai
+    wl = w.reshape(*shape, 4, 2, 3)
     wl = wl / np.linalg.norm(wl, axis=-1, keepdims=True)
     pr = cross(p, ri[..., None, :])
-    c = np.sum(pr * wl[..., None, :], axis=-1)  # (..., 4, 2)
+    c = np.sum(pr * wl, axis=-1)  # (..., 4, 2)
     a = np.sum(w.reshape(*shape, 4, 2, 3) * pr, axis=-1)  # (..., 4, 2)
     blocks = a[..., :, None] * c[..., None, :] * c_t[..., :, None, None]  # (..., 4, 2, 2)
     hc = np.zeros((*shape, 8, 8))
@@ -435,8 +434,7 @@ def study(h4, poses: np.ndarray | None = None, n_robots: int = 1000, sigmas: dic
         # Pose error at the commanded nominal q (forward geometry).
         fw, _, ok2 = _solve_pairs(bg, qp, xp, False, inv_fwd[pi])
         ok = ok1 & ok2
-        theta_f = np.arctan2(fw.R[..., 1, 0], fw.R[..., 0, 0])
-        e = np.concatenate([fw.D - xp[:, :3], (theta_f - xp[:, 3])[..., None]], axis=-1)
+        e = np.concatenate([fw.D - xp[:, :3], (fw.theta - xp[:, 3])[..., None]], axis=-1)
         comp[ri, pi] = np.where(ok[..., None, None], kk[..., :3, :3], np.nan)
         err[ri, pi] = np.where(ok[..., None], e, np.nan)
         tilt[ri, pi] = np.where(ok, np.linalg.norm(fw.tilt[..., :2], axis=-1), np.nan)

@@ -43,13 +43,13 @@ def _dc(dx: float = 0.0, dy: float = 0.0) -> np.ndarray:
 #: name -> (x label, values, params for a value, value of the default)
 SWEEPS = {
     "half-width h": ("h [mm]", np.array([4, 6, 10, 20, 30, 40, 50]) * 1e-3,
-                     lambda v: BASE.replace(half_width=v), BASE.half_width),
+                     lambda v: BASE.replace(half_width=v), BASE.half_width[0]),
     "C_k along x": ("x offset of C_1, C_2 [mm]", np.linspace(-40, 40, 9) * 1e-3,
                     lambda v: BASE.replace(DC=_dc(dx=v)), 0.0),
     "C_k along y": ("|y| of C_k - 60 mm [mm]", np.linspace(-40, 40, 9) * 1e-3,
                     lambda v: BASE.replace(DC=_dc(dy=v)), 0.0),
     "I0": ("I0 / I", np.array([0.25, 0.5, 1, 2, 3, 4]),
-           lambda v: BASE.replace(I0=v * BASE.I), BASE.I0 / BASE.I),
+           lambda v: BASE.replace(I0=v * BASE.I), BASE.I0[0] / BASE.I[0]),
     "stressed forearm": ("stressed fraction of r", np.linspace(0.5, 1.0, 6),
                          lambda v: BASE.replace(forearm_stressed_fraction=v), 1.0),
     "kc": ("kc / 7.4e3 N.m/rad", np.array([0.5, 0.75, 1, 1.5, 2]),

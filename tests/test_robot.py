@@ -30,9 +30,14 @@ def test_named_frames(proto):
 
 
 def test_centre_pose(proto, centre):
-    """All actuators at 45 deg: D is on the z axis (mirror symmetry) and theta = 0."""
+    """All actuators at 45 deg: D is on the z axis (mirror symmetry) and theta = 0; its height by
+    hand from leg 1 (A_1 = P_1 + r (-x cos 45 - z sin 45), B_1 = D + DB_1, |B_1 - A_1| = l)."""
     np.testing.assert_allclose(centre[[0, 1, 3]], 0.0, atol=1e-12)
-    assert -0.7 < centre[2] < -0.5
+    r, l, s = 0.260, 0.480, np.sqrt(0.5)
+    dx = (0.200 + r * s) - 0.060  # x gap between A_1 and B_1; their y are both -60 mm
+    z = -r * s - 0.050 - np.sqrt(l**2 - dx**2)
+    assert centre[2] == pytest.approx(z, abs=1e-12)
+    assert centre[2] == pytest.approx(-0.58814, abs=5e-6)  # as printed by h4pin table2
 
 
 def test_inverse_forward_round_trip(proto, poses):

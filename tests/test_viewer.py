@@ -109,6 +109,19 @@ def test_ghost_moves_d_by_the_exaggerated_deflection(proto, poses):
     np.testing.assert_allclose(moved, factor * compliance(proto, x, "consistent").translational @ force, rtol=1e-12)
 
 
+@pytest.mark.parametrize("bad", [[0, 0, np.nan], [np.inf, 0, 0, 0, 0, 0, 0, 0], [0, 0], [[0, 0, -10]], ["a", 0, 0]])
+def test_deflection_refuses_bad_loads(proto, centre, bad):
+    """A NaN, infinite, wrongly sized or non-numeric load is a LoadError (an H4Error and a
+    ValueError) naming the load, from deflection and deflected_configuration alike."""
+    from h4pin import H4Error, LoadError
+    from h4pin.deflection import deflection
+
+    for call in (lambda: deflection(proto, centre, bad), lambda: deflected_configuration(proto, centre, bad)):
+        with pytest.raises(LoadError, match="load") as info:
+            call()
+        assert isinstance(info.value, H4Error) and isinstance(info.value, ValueError)
+
+
 def test_scene_legend_states_the_scales(proto, centre):
     with viewer.show(proto, centre, load=[0, 0, -10], scale=2.0, exaggeration=100.0) as scene:
         text = " ".join(scene.legend)
