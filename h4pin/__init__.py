@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """h4pin: the H4 parallel robot on Pinocchio, and its stiffness after Company et al. (ICRA 2005)."""
 
+from h4pin import _compat  # noqa: F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
 from h4pin.errors import (
     ConvergenceError,
     H4Error,
