@@ -16,6 +16,11 @@ from h4pin.robot import H4, load
 
 __version__ = "0.1.0"
 
+# example_robot_data.load("h4") when example-robot-data-loaders is installed (no download).
+from h4pin import erd as _erd  # noqa: E402
+
+_erd.register()
+
 __all__ = [
     "H4",
     "VARIANTS",

@@ -139,6 +139,11 @@ class H4:
         self._a_bar = np.repeat(params.forearm_dirs.T, 2, axis=0)
         self._q_neutral = pin.neutral(self.model)
 
+    @property
+    def actuated_joint_names(self) -> tuple[str, ...]:
+        """Names of the 4 actuated joints in ``model.names``, in leg order (1, 2, 3, 4)."""
+        return tuple(leg_names(i + 1)["joint"] for i in range(4))
+
     def _build_constraints(self) -> None:
         closures = {c[0]: c for c in closures_from_urdf(self.urdf, self.source)}
         self.constraint_models = pin.StdVec_RigidConstraintModel()
