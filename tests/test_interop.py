@@ -21,6 +21,7 @@ import h4pin
 from h4pin import interop
 from h4pin.errors import MalformedURDFError, ParameterError
 from h4pin.params import VARIANTS
+from h4pin.table2 import centre_pose
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -61,7 +62,7 @@ def test_sidecar_gives_the_same_closures_and_motors(variant):
     assert [h4.model.joints[h4.model.getJointId(n)].idx_v for n in sidecar["name_mot"]] == list(h4.v_act)
     # The sidecar's closures are closed where h4pin says the robot is assembled.
     data = model.createData()
-    q = h4.configuration(h4pin.table2.centre_pose(h4))
+    q = h4.configuration(centre_pose(h4))
     pin.forwardKinematics(model, data, q)
     for cm in cms:
         gap = (data.oMi[cm.joint1_id] * cm.joint1_placement).translation \
@@ -210,7 +211,6 @@ def test_actuated_joint_names_are_the_actuators(proto):
 # ----------------------------------------------------------------- example-robot-data
 def test_example_robot_data_loads_the_h4():
     erd = pytest.importorskip("example_robot_data")
-    from h4pin.table2 import centre_pose
 
     assert {"h4", "h4_prototype", "h4_symmetric"} <= set(erd.ROBOTS)
     for name, variant in (("h4", "prototype"), ("h4_symmetric", "symmetric")):
