@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """h4pin: the H4 parallel robot on Pinocchio, and its stiffness after Company et al. (ICRA 2005)."""
 
+from h4pin import _compat  # noqa: F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
 from h4pin.errors import (
     ConvergenceError,
     H4Error,
@@ -20,6 +21,11 @@ from h4pin.robot import H4, Kinematics, load
 from h4pin.stiffness import Compliance, compliance
 
 __version__ = "0.1.0"
+
+# example_robot_data.load("h4") when example-robot-data-loaders is installed (no download).
+from h4pin import erd as _erd  # noqa: E402
+
+_erd.register()
 
 __all__ = [
     "H4",

@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Command line: ``h4pin table2`` (the paper's Table II) and ``h4pin view`` (meshcat viewer).
+"""Command line: ``h4pin table2`` (the paper's Table II), ``h4pin view`` (meshcat viewer) and
+``h4pin export --mjcf PATH`` (MuJoCo model).
 
 Errors a user can act on (unreachable or singular pose, bad parameter, malformed URDF, bad
 arguments) print one line on stderr and exit with status 2; nothing is half-written.
@@ -198,6 +199,26 @@ def tolerance(
     typer.echo(tol.report(res, sens))
     if figure is not None:
         typer.echo(f"wrote {tol.write_figure(res, figure)}")
+
+
+@app.command()
+def export(
+    mjcf: Path = typer.Option(..., help="write the robot as MuJoCo MJCF here (closures as connect equalities)"),
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+) -> None:
+    """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors)."""
+    from h4pin.mjcf import write_mjcf
+
+    if mjcf.is_dir():
+        fail(f"cannot write {mjcf}: it is a folder")
+    if not mjcf.parent.is_dir():
+        fail(f"cannot write {mjcf}: folder {mjcf.parent} does not exist")
+    h4 = load_robot(variant, urdf)
+    try:
+        typer.echo(f"wrote {write_mjcf(h4, mjcf)}")
+    except OSError as exc:
+        fail(f"cannot write {mjcf}: {exc.strerror or exc}")
 
 
 def main() -> None:

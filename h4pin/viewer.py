@@ -63,6 +63,24 @@ def ellipsoid_axes(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return vals, vecs
 
 
+def draw_ellipsoid(vis: meshcat.Visualizer, path: str, block: np.ndarray, centre: np.ndarray,
+                   scale: float | None = None, colour: int = 0x20b050, opacity: float = 0.6) -> float:
+    """Draw the compliance ellipsoid of a 3x3 block (m/N) at ``centre`` (m), for any robot and frame.
+
+    Axes and radii from :func:`ellipsoid_axes`; ``scale``: mm drawn per um/N (default: the largest
+    radius drawn about 120 mm). Returns the scale used. E.g. a serial arm's tool frame, with
+    :func:`h4pin.serial.serial_compliance`'s ``translational`` block and ``position``.
+    """
+    radii, axes = ellipsoid_axes(np.asarray(block, float))
+    um = radii * 1e6
+    if scale is None:
+        scale = _nice(ELLIPSOID_SIZE * 1e3 / um.max())
+    vis[path].set_object(mg.Ellipsoid(np.maximum(um * scale * 1e-3, 1e-5)),
+                         mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=True))
+    vis[path].set_transform(_transform(axes, np.asarray(centre, float)))
+    return scale
+
+
 def _nice(x: float) -> float:
     """The largest of 1, 2, 5 x 10^n not above x."""
     exp = np.floor(np.log10(x))

@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 import h4pin
+from h4pin._compat import init_constraint_dynamics, set_baumgarte
 from h4pin.table2 import centre_pose
 
 
@@ -31,10 +32,9 @@ def simulate(h4: h4pin.H4, duration: float = 1.0, dt: float = 1e-4, torque_step:
     v = np.zeros(model.nv)
     tau = np.zeros(model.nv)
     tau[h4.v_act] = h4.gravity_torques(pose0) + torque_step
-    baumgarte = pin.BaumgarteCorrectorParameters(1e4, 200.0)  # Kp [1/s^2], Kd = 2 sqrt(Kp) [1/s]
     for cm in h4.constraint_models:
-        cm.setBaumgarteCorrectorParameters(baumgarte)
-    pin.initConstraintDynamics(model, data, h4.constraint_models, h4.constraint_datas)
+        set_baumgarte(cm, 1e4, 200.0)  # Kp [1/s^2], Kd = 2 sqrt(Kp) [1/s]
+    init_constraint_dynamics(model, data, h4.constraint_models, h4.constraint_datas)
     prox = pin.ProximalSettings(1e-12, 1e-12, 10)
     rows = []
     steps = int(round(duration / dt))

@@ -122,7 +122,8 @@ def test_scripts_work_from_the_unpacked_sdist(unpacked_sdist, tmp_path):
     assert check.returncode == 0, check.stderr
     from h4pin.params import VARIANTS
 
-    assert check.stdout.count("up to date: urdf/") == len(VARIANTS)
+    assert check.stdout.count("up to date: urdf/h4_") == len(VARIANTS) * 2  # URDF + Extended-URDF sidecar
+    assert check.stdout.count("up to date: srdf/h4_") == len(VARIANTS)
     table = run([str(top / "scripts" / "reproduce_table2.py")], tmp_path, top)
     here = run(["-m", "h4pin.cli", "table2"], tmp_path, ROOT)
     assert table.returncode == 0 and here.returncode == 0, table.stderr + here.stderr
