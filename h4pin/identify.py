@@ -130,6 +130,7 @@ class Fit:
             identifiable combinations (``std_scaled < identifiable``); NaN if a parameter is
             mostly in unidentifiable directions.
         cost: 0.5 * sum(residual^2).
+        bounds: (lower, upper) of each fitted parameter, SI.
     """
 
     names: tuple[str, ...]
@@ -143,6 +144,7 @@ class Fit:
     combinations: list[Combination]
     std: dict[str, float]
     cost: float
+    bounds: dict[str, tuple[float, float]]
 
     @property
     def condition(self) -> float:
@@ -171,7 +173,8 @@ def _residual_fn(names: tuple[str, ...], target: np.ndarray, sigma: float, fixed
 
 def fit(target: np.ndarray = gap.MEASURED, names: tuple[str, ...] = MEASURED_FIT, sigma: float | None = None,
         starts: int = 6, seed: int = 0, identifiable: float = 0.25, fixed: dict[str, float] | None = None,
-        same_point: bool = False) -> Fit:
+        same_point: bool = False, bounds: dict[str, tuple[float, float]] | None = None,
+        start: dict[str, float] | None = None) -> Fit:
     """Bounded least squares of ``names`` to ``target`` (3, 3) m/N.
 
     Args:
@@ -179,13 +182,16 @@ def fit(target: np.ndarray = gap.MEASURED, names: tuple[str, ...] = MEASURED_FIT
         names: the parameters fitted (others at their defaults or ``fixed``).
         sigma: noise per entry, m/N (default: :func:`h4pin.gap.noise_from_asymmetry` of target,
             or :data:`ROUNDING_SIGMA` when the target has no asymmetry).
-        starts: the defaults plus ``starts - 1`` seeded random points within the bounds; the
-            best local solution is kept (the offsets make the problem non-convex).
+        starts: ``start`` (default: the defaults) plus ``starts - 1`` seeded random points within
+            the bounds; the best local solution is kept (the offsets make the problem non-convex).
         identifiable: a combination is called identifiable when its standard deviation is below
             this fraction of the parameters' plausible ranges.
         fixed: values of parameters not fitted (default: :data:`PARAMETERS` defaults).
         same_point: the force is applied where the displacement is measured (p' = p; give only
             p_x, p_y, p_z in ``names``).
+        bounds: (lower, upper) replacing the plausible bounds of some parameters, to see what the
+            data asks for beyond them.
+        start: the first starting point (missing parameters at their defaults).
 
     Raises:
         ConvergenceError: every start failed (a start that hits ``max_nfev`` still counts: the
@@ -195,9 +201,11 @@ def fit(target: np.ndarray = gap.MEASURED, names: tuple[str, ...] = MEASURED_FIT
     if sigma is None:
         sigma, _ = gap.noise_from_asymmetry(target)
         sigma = sigma if sigma > 0 else ROUNDING_SIGMA
-    lower = np.array([PARAMETERS[n].lower for n in names])
-    upper = np.array([PARAMETERS[n].upper for n in names])
-    x0 = np.array([fixed.get(n, PARAMETERS[n].default) for n in names])
+    limits = {n: (p.lower, p.upper) for n, p in PARAMETERS.items()} | dict(bounds or {})
+    lower = np.array([limits[n][0] for n in names])
+    upper = np.array([limits[n][1] for n in names])
+    first = {n: p.default for n, p in PARAMETERS.items()} | fixed | dict(start or {})
+    x0 = np.clip([first[n] for n in names], lower, upper)
     rng = np.random.default_rng(seed)
     guesses = [x0] + [lower + rng.uniform(0.05, 0.95, len(names)) * (upper - lower) for _ in range(starts - 1)]
     fn = _residual_fn(names, target, sigma, fixed, same_point)
@@ -238,7 +246,8 @@ def _report(x: np.ndarray, names: tuple[str, ...], target: np.ndarray, sigma: fl
     tol = 1e-6 * (upper - lower)
     bound = tuple(n for n, xi, lo, hi, t in zip(names, x, lower, upper, tol, strict=True) if xi - lo < t or hi - xi < t)
     return Fit(tuple(names), values, np.asarray(target), model, float(sigma), res, bound, s, combos, std,
-               0.5 * float(np.sum(res**2)))
+               0.5 * float(np.sum(res**2)), {n: (float(a), float(b)) for n, a, b in zip(names, lower, upper,
+                                                                                         strict=True)})
 
 
 def fit_measured_one_point(starts: int = 6) -> Fit:
