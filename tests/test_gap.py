@@ -104,3 +104,16 @@ def test_fit_region_against_robots_built_with_the_factors():
         t = compliance(h4, h4.forward_geometry(np.full(4, np.pi / 4))).translational
         err = np.max(np.abs(gap.entries(t) - gap.entries(gap.COMPUTED)))
         assert (err <= gap.ROUNDING + 1e-12) == inside, (a, err)
+
+
+def test_half_width_acts_only_through_tension(centre):
+    """At the centre, h leaves control, bending and torsion unchanged (statics route) and moves the
+    tension block within the span of the two shapes: it cannot be told from the tilt factor."""
+    a = statics.compliance_terms(H4Params(half_width=0.02), centre)
+    b = statics.compliance_terms(H4Params(half_width=0.05), centre)
+    for t in ("control", "bending", "torsion"):
+        np.testing.assert_allclose(b[t][:3, :3], a[t][:3, :3], rtol=1e-10, atol=1e-12 * np.abs(a[t]).max())
+    change = {"tension": b["tension"][:3, :3] - a["tension"][:3, :3], "control": a["control"][:3, :3],
+              "torsion": a["torsion"][:3, :3]}
+    assert np.abs(change["tension"]).max() > 0.3 * np.abs(a["tension"][:3, :3]).max()
+    assert gap.in_span(change)[1] < 1e-10
