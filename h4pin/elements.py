@@ -203,3 +203,11 @@ def element_terms_fd(params: H4Params, pose: np.ndarray, elements: Elements, ste
         gl = robot.sensitivities(step)[:, 8:]
         out["ball_radial"] = 2.0 * elements.ball_radial * gl @ gl.T
     return out
+
+
+def term_entries(h4: H4, pose: np.ndarray, elements: Elements = ILLUSTRATIVE) -> dict[str, np.ndarray]:
+    """Each term's (eq. 30's four and the elements that are on) Table II entries xx, yy, zz, xz,
+    shape (4,) in m/N, at one pose; they sum to the entries of :func:`compliance_with_elements`."""
+    res = compliance_with_elements(h4, pose, elements)
+    return {t: np.array([b[0, 0], b[1, 1], b[2, 2], b[0, 2]]) for t, b in
+            ((t, m[:3, :3]) for t, m in res.terms.items())}

@@ -79,3 +79,10 @@ def test_bad_element_values(bad):
     with pytest.raises(ParameterError, match="revolute_tilt"):
         el.Elements(revolute_tilt=bad)
     assert dataclasses.replace(el.Elements(), ball_radial=1e-8).off is False
+
+
+def test_term_entries_sum_to_the_table(proto, centre):
+    entries = el.term_entries(proto, centre)
+    table = el.compliance_with_elements(proto, centre, el.ILLUSTRATIVE).translational
+    np.testing.assert_allclose(sum(entries.values()), table[[0, 1, 2, 0], [0, 1, 2, 2]], rtol=1e-14)
+    assert entries["revolute_tilt"][0] > 0 and abs(entries["revolute_tilt"][2]) < 1e-12 * entries["revolute_tilt"][0]
