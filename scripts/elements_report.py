@@ -44,8 +44,9 @@ def main() -> None:
         coef, res = gap.in_span(base | {name: terms[name][:3, :3]}, name, ("control", "torsion"))
         c = getattr(el.ILLUSTRATIVE, name)
         xx = entries[name][0]
-        need = f"{c * 1e-6 / xx:.2e} {UNITS[name]} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[UNITS[name]]})" if abs(xx) > 1e-9 * abs(
-            total[0]) else "none: no xx at this pose"
+        unit = UNITS[name]
+        need = (f"{c * 1e-6 / xx:.2e} {unit} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[unit]})"
+                if abs(xx) > 1e-9 * abs(total[0]) else "none: no xx at this pose")
         kind = "inside the two-shape cone" if res < 1e-6 and np.all(coef >= 0) else (
             "in their plane, outside the cone" if res < 1e-6 else f"outside their plane (residual {res:.2f})")
         print(f"  {name:<16} {kind:<36} {need}")
