@@ -338,10 +338,7 @@ class Compliance:
             r = np.einsum("...ab,...b->...a", rot, o)
             t = np.zeros((*r.shape[:-1], 3, 6))
             t[..., :, :3] = np.eye(3)
-            t[..., :, 3:] = -np.stack([np.zeros_like(r[..., 0]), -r[..., 2], r[..., 1],
-                                       r[..., 2], np.zeros_like(r[..., 0]), -r[..., 0],
-                                       -r[..., 1], r[..., 0], np.zeros_like(r[..., 0])], axis=-1).reshape(
-                *r.shape[:-1], 3, 3)
+            t[..., :, 3:] = -np.swapaxes(geometry.cross(r[..., None, :], np.eye(3)), -1, -2)  # -[r]x
             return t
 
         tp = transform(offset)
