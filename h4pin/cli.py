@@ -99,11 +99,13 @@ def table2(
     variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
     urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
     model: str = typer.Option("paper", help="'paper' (eq. 30 as printed) or 'consistent' (erratum 4 fixed)"),
+    fitted: bool = typer.Option(False, "--fitted", help="side by side: this robot, the 'fitted' variant at its "
+                                "identified point, the paper's computed and measured tables"),
 ) -> None:
     """Table II of the paper: compliance at q_i = 45 deg beside the paper's computed and measured tables."""
-    from h4pin.table2 import report
+    from h4pin.table2 import report, report_fitted
 
-    typer.echo(report(load_robot(variant, urdf), model=model))
+    typer.echo((report_fitted if fitted else report)(load_robot(variant, urdf), model=model))
 
 
 @app.command()

@@ -152,6 +152,35 @@ def as_load(load: Any) -> np.ndarray:
                         f"got {load!r}")
     return g
 
+    def at(self, offset: np.ndarray, load_at: np.ndarray | None = None) -> np.ndarray:
+        """Translational compliance (3, 3) (or (N, 3, 3)) at a point p fixed to the central bar,
+        for a force applied at p' (default p' = p), SI (m/N).
+
+        ``offset`` o and ``load_at`` o' (3,) (or (N, 3)) are the points in the central-bar frame,
+        in m: p - D = Rz(theta) o, with theta the pose's (the frame is world-aligned at theta = 0).
+        A small plate motion moves p by ``dp = dD + dOmega x (p - D) = T_p [dD; dOmega]`` with
+        ``T_p = [I, -[p - D]x]`` (3x6); a force F at p' is ``[F, (p' - D) x F] = T_p'^T F`` at D.
+        Hence ``C_pp' = T_p K6 T_p'^T``, K6 the F, T block of :attr:`matrix` (the same in both
+        models). With ``offset = load_at = 0`` it is :attr:`translational`; for p != p' it is not
+        symmetric (``C_p'p = C_pp'^T``).
+        """
+        theta = np.asarray(self.pose)[..., 3]
+        rot = geometry.rot_z(theta)
+
+        def transform(o: np.ndarray) -> np.ndarray:
+            o = np.asarray(o, dtype=float)
+            if o.shape[-1:] != (3,):
+                raise ValueError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
+            r = np.einsum("...ab,...b->...a", rot, o)
+            t = np.zeros((*r.shape[:-1], 3, 6))
+            t[..., :, :3] = np.eye(3)
+            t[..., :, 3:] = -np.swapaxes(geometry.cross(r[..., None, :], np.eye(3)), -1, -2)  # -[r]x
+            return t
+
+        tp = transform(offset)
+        tq = tp if load_at is None else transform(load_at)
+        return tp @ self.matrix[..., :6, :6] @ np.swapaxes(tq, -1, -2)
+
 
 def matrices_at(h4, pose: np.ndarray) -> Matrices:
     """All the paper's matrices at one pose, through Pinocchio (:func:`h4pin.matrices.from_kinematics`).

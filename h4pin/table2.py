@@ -63,3 +63,34 @@ def report(h4: H4, model: str = "paper") -> str:
     lines += ["", "The gap to the paper comes from prototype data the paper does not give (half-width, C_k, "
               "section shapes);", "defaults are not tuned to the table. See scripts/sensitivity.py for what closes it."]
     return "\n".join(lines)
+
+
+def report_fitted(h4: H4, model: str = "paper") -> str:
+    """Side by side (um/N): ``h4`` at D (printed as "h4pin"), the ``fitted`` variant at its identified point
+    (:mod:`h4pin.identify`), the paper's computed and measured tables."""
+    from h4pin import identify
+    from h4pin.robot import load
+
+    fitted = load(identify.fitted_params())
+    point = identify.fitted_point()
+    tables = {
+        "h4pin, at D": compliance(h4, centre_pose(h4), model).translational * 1e6,
+        "fitted, at p": compliance(fitted, centre_pose(fitted), model).at(point) * 1e6,
+        "paper, computed": PAPER_COMPUTED,
+        "paper, measured": PAPER_MEASURED,
+    }
+    rows = "xyz"
+    width = 3 * 7 + 4
+    lines = [f"Table II [um/N], q_i = 45 deg, model '{model}' (rows: displacement, columns: force)", "",
+             f"{'':<8}" + "".join(f"{name[:width - 2]:<{width}}" for name in tables),
+             f"{'':<8}" + "".join("".join(f"{'F' + c:>7}" for c in rows) + " " * 4 for _ in tables)]
+    for a in range(3):
+        cells = ("".join(f"{np.round(m[a, b], 1) + 0.0:7.1f}" for b in range(3)) + " " * 4 for m in tables.values())
+        lines.append(f"  d{rows[a]:<6}" + "".join(cells))
+    v = identify.FITTED
+    lines += ["", f"fitted: force and dial indicators at p = D + ({', '.join(f'{x * 1e3:.1f}' for x in point)}) mm "
+              "(central-bar frame),",
+              f"C_k moved by ({v['ck_dx'] * 1e3:.1f}, {v['ck_dy'] * 1e3:.1f}) mm, h = {v['half_width'] * 1e3:.1f} mm, "
+              f"torsion compliance x{v['tilt']:.2f}, actuator + bending compliance x{v['axial']:.2f}",
+              "(identified on the measured table, scripts/identify.py; see docs/gap.md)"]
+    return "\n".join(line.rstrip() for line in lines)

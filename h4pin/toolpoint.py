@@ -1,0 +1,133 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Compliance at a tool point: an independent route for :meth:`h4pin.stiffness.Compliance.at`.
+
+A real tool or dial indicator is never exactly at D. For a point p fixed to the central bar
+(offset o in the central-bar frame, ``p - D = Rz(theta) o``) and a force F applied at another
+such point p', the compliance ``C_pp'`` (3x3, ``dp = C_pp' F``) is computed here without the
+paper's matrices and without K:
+
+1. :func:`bar_forces_at`: Newton-Euler equilibrium of the three plate bodies with F acting at p'
+   (its moment about D is ``(p' - D) x F``), solved for the 8 bar tensions and the reactions of
+   the two revolute joints (moments taken about D, not about the world origin as in
+   :mod:`h4pin.statics`).
+2. :func:`spring_loads_at`: the load of each of the 16 springs of :mod:`h4pin.deformed` (forearm
+   rotation about u_i, forearm twist, bar tension) per unit force at p'.
+3. :func:`point_sensitivities`: ``dp / d eps_s`` by central differences of the non-linear deformed
+   robot (:class:`h4pin.deformed.DeformedH4`): solve the deformed plate, move p rigidly with the
+   central bar.
+4. Virtual work: ``C_pp' = sum_s c_s (dp/d eps_s) g_s(p')^T`` (:func:`point_compliance`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin import geometry
+from h4pin.deformed import DeformedH4
+from h4pin.params import LEG_LATERAL, H4Params
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def world_offset(pose: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """p - D (3,) in m for an offset o (3,) given in the central-bar frame: Rz(theta) o."""
+    return geometry.rot_z(float(pose[3])) @ np.asarray(offset, dtype=float)
+
+
+def bar_forces_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
+    """Bar tensions (8, 3) per unit force at p' (offset ``load_at`` (3,) m, central-bar frame).
+
+    Unknowns: tensions f (8), then for each lateral bar k the joint force F_k (3) and the joint
+    moments about x and y M_k (2), acting on lateral bar k (minus them on the central bar); the
+    joint carries no moment about its axis z (no torque is applied). Equations: force and moment
+    (about D) balance of the central bar and of each lateral bar. Bar ij in tension pulls B_ij
+    towards A_ij.
+    """
+    x = geometry.as_poses(pose)
+    q = geometry.inverse_geometry(params, x)
+    pts = geometry.points(params, x, q)
+    w = (pts.Bij - pts.Aij).reshape(8, 3)
+    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    b = pts.Bij.reshape(8, 3) - pts.D  # lever arms about D
+    lat = np.repeat(LEG_LATERAL, 2)
+    a = np.zeros((18, 18))
+    for k in range(2):
+        cf, cm = 8 + 5 * k, 11 + 5 * k
+        ck = pts.C[k] - pts.D
+        # central bar: -F_k at C_k, -M_k
+        a[0:3, cf:cf + 3] -= np.eye(3)
+        a[3:6, cf:cf + 3] -= _skew(ck)
+        a[3:6, cm:cm + 2] -= np.eye(3)[:, :2]
+        # lateral bar k: +F_k at C_k, +M_k, and its bars
+        r0 = 6 + 6 * k
+        a[r0:r0 + 3, cf:cf + 3] += np.eye(3)
+        a[r0 + 3:r0 + 6, cf:cf + 3] += _skew(ck)
+        a[r0 + 3:r0 + 6, cm:cm + 2] += np.eye(3)[:, :2]
+        for n in np.flatnonzero(lat == k):
+            a[r0:r0 + 3, n] = -w[n]
+            a[r0 + 3:r0 + 6, n] = -np.cross(b[n], w[n])
+    arm = world_offset(x, load_at)
+    rhs = np.zeros((18, 3))
+    rhs[0:3] = -np.eye(3)  # F + (joint forces) = 0 on the central bar
+    rhs[3:6] = -_skew(arm)  # (p' - D) x F + ... = 0
+    return np.linalg.solve(a, rhs)[:8]
+
+
+def spring_loads_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
+    """Load of each spring (16, 3) per unit force at p', ordered as ``eps`` in
+    :meth:`h4pin.deformed.DeformedH4.anchors`: moment about u_i on forearm i (4, N.m/N), moment
+    about the forearm axis (4, N.m/N), bar tension (8, N/N)."""
+    x = geometry.as_poses(pose)
+    q = geometry.inverse_geometry(params, x)
+    pts = geometry.points(params, x, q)
+    f = bar_forces_at(params, x, load_at)
+    w = (pts.Bij - pts.Aij).reshape(8, 3)
+    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    aij = pts.Aij.reshape(8, 3)
+    out = np.zeros((16, 3))
+    for n in range(8):
+        i = n // 2
+        e = (pts.A[i] - pts.P[i]) / np.linalg.norm(pts.A[i] - pts.P[i])
+        out[i] += params.U[:, i] @ np.cross(aij[n] - pts.P[i], w[n]) * f[n]
+        out[4 + i] += e @ np.cross(aij[n] - pts.A[i], w[n]) * f[n]
+    out[8:] = f
+    return out
+
+
+def point_sensitivities(params: H4Params, pose: np.ndarray, offset: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """``dp / d eps`` (3, 16) of the point p (offset (3,) m, central-bar frame) by central
+    differences of the deformed robot: the plate is solved non-linearly and p moves rigidly
+    with the central bar (``p = D + exp(Omega) Rz(theta) o``)."""
+    robot = DeformedH4(params, pose)
+    o = np.asarray(offset, dtype=float)
+    rot = geometry.rot_z(float(robot.pose[3]))
+
+    def point(tp: np.ndarray) -> np.ndarray:
+        return robot.pose[:3] + tp[:3] + pin.exp3(tp[3:6]) @ rot @ o
+
+    g = np.empty((3, 16))
+    for s in range(16):
+        e = np.zeros(16)
+        e[s] = step
+        g[:, s] = (point(robot.solve_plate(e)) - point(robot.solve_plate(-e))) / (2 * step)
+    return g
+
+
+def spring_compliances(params: H4Params) -> np.ndarray:
+    """Compliance of each of the 16 springs (16,): actuator + bending per forearm rotation
+    (rad/(N.m)), torsion (rad/(N.m)), bar tension (m/N)."""
+    c = params.compliances()
+    return np.r_[np.full(4, c["control"] + c["bending"]), np.full(4, c["torsion"]), np.full(8, c["tension"])]
+
+
+def point_compliance(params: H4Params, pose: np.ndarray, offset: np.ndarray, load_at: np.ndarray | None = None,
+                     step: float = 1e-6) -> np.ndarray:
+    """``C_pp'`` (3, 3) in m/N by statics (spring loads for a force at p') and finite differences
+    of the deformed robot (motion of p per spring deformation); ``load_at`` defaults to ``offset``."""
+    load_at = offset if load_at is None else load_at
+    g_load = spring_loads_at(params, pose, load_at)
+    g_move = point_sensitivities(params, pose, offset, step)
+    return (g_move * spring_compliances(params)) @ g_load

@@ -1,0 +1,56 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+"""Term-by-term report of Table II with the elements eq. 30 neglects (h4pin.elements).
+
+At q_i = 45 deg, with illustrative element compliances (orders of magnitude of bearings and ball
+joints, not prototype data): each term's xx, yy, zz, xz in um/N and its share; each element's
+shape against the two shapes of eq. 30 (docs/gap.md); and the element compliance that would add
+1 um/N to xx (each term is linear in its compliance).
+
+    python scripts/elements_report.py
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import h4pin
+from h4pin import elements as el
+from h4pin import gap
+from h4pin.table2 import centre_pose
+
+US = 1e6
+UNITS = {"revolute_radial": "m/N", "revolute_axial": "m/N", "revolute_tilt": "rad/(N.m)", "ball_radial": "m/N"}
+STIFFNESS = {"m/N": "N/m", "rad/(N.m)": "N.m/rad"}
+
+
+def main() -> None:
+    h4 = h4pin.load("prototype")
+    pose = centre_pose(h4)
+    entries = el.term_entries(h4, pose, el.ILLUSTRATIVE)
+    total = sum(entries.values())
+    print("Elements (illustrative): " + ", ".join(f"{n} = {getattr(el.ILLUSTRATIVE, n):.0e} {UNITS[n]}"
+                                                 for n in el.ELEMENTS))
+    print(f"\n{'term':<18}" + "".join(f"{e:>9}" for e in gap.ENTRIES) + "   share of xx   yy/xx  zz/xx  xz/xx")
+    for name, v in entries.items():
+        has_xx = abs(v[0]) > 1e-9 * np.abs(total).max()
+        ratios = "  ".join(f"{x / v[0]:5.3f}" for x in v[1:]) if has_xx else "  (no xx)"
+        print(f"{name:<18}" + "".join(f"{x * US:9.3f}" for x in v) + f"{v[0] / total[0]:12.1%}   " + ratios)
+    print(f"{'total':<18}" + "".join(f"{x * US:9.3f}" for x in total))
+    terms = el.compliance_with_elements(h4, pose, el.ILLUSTRATIVE).terms
+    base = {"control": terms["control"][:3, :3], "torsion": terms["torsion"][:3, :3]}
+    print("\nElement shape vs the two shapes of eq. 30 (axial, tilt), and the compliance adding 1 um/N to xx:")
+    for name in el.ELEMENTS:
+        coef, res = gap.in_span(base | {name: terms[name][:3, :3]}, name, ("control", "torsion"))
+        c = getattr(el.ILLUSTRATIVE, name)
+        xx = entries[name][0]
+        unit = UNITS[name]
+        need = (f"{c * 1e-6 / xx:.2e} {unit} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[unit]})"
+                if abs(xx) > 1e-9 * abs(total[0]) else "none: no xx at this pose")
+        kind = "inside the two-shape cone" if res < 1e-6 and np.all(coef >= 0) else (
+            "in their plane, outside the cone" if res < 1e-6 else f"outside their plane (residual {res:.2f})")
+        print(f"  {name:<16} {kind:<36} {need}")
+
+
+if __name__ == "__main__":
+    main()
