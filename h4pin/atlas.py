@@ -165,7 +165,7 @@ def open_atlas(path: str | Path) -> xr.Dataset:
     if not path.exists():
         raise FileNotFoundError(f"no atlas at {path}")
     if path.suffix == ".zarr":
-        with xr.open_zarr(path) as ds:
+        with xr.open_zarr(path, consolidated=False) as ds:
             return ds.load()
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()
