@@ -127,6 +127,39 @@ def atlas(
             typer.echo(f"wrote {path}")
 
 
+@app.command()
+def sweep(
+    out: Path = typer.Option(Path("sweep.zarr"), help="zarr store of the results (resumed if it exists)"),
+    designs: int = typer.Option(1000, help="number of designs (Sobol sequence over the design space)"),
+    seed: int = typer.Option(0, help="seed of the Sobol sequence"),
+    chunk: int = typer.Option(64, help="designs per task (and per zarr chunk)"),
+    model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
+    workers: int | None = typer.Option(None, help="run on a Dask LocalCluster with this many workers"),
+    scheduler: str | None = typer.Option(None, help="run on the Dask scheduler at this address"),
+    threads: int | None = typer.Option(None, help="numba threads per task (default: all locally, 1 on Dask)"),
+    pareto: Path | None = typer.Option(None, help="write the Pareto figure here (PNG)"),
+    urdf_dir: Path | None = typer.Option(None, help="write the best designs here as URDF variants"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Design sweep: which designs reach the task box, their worst compliance and workspace volume."""
+    from h4pin import sweep as sweep_module
+
+    spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model)
+    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
+    front = sweep_module.pareto(res)
+    typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
+               f"{res['reach_all'].sum()} reach the whole task box, {front.size} on the Pareto front")
+    for d in front:
+        typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3")
+    if pareto is not None:
+        typer.echo(f"wrote {sweep_module.plot_pareto(res, pareto)}")
+    if urdf_dir is not None:
+        if not urdf_dir.is_dir():
+            fail(f"--urdf-dir: folder {urdf_dir} does not exist")
+        for path in sweep_module.write_best(res, urdf_dir):
+            typer.echo(f"wrote {path}")
+
+
 def main() -> None:
     """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
     try:

@@ -122,11 +122,12 @@ class Spec:
 
 
 def designs(spec: Spec) -> np.ndarray:
-    """The design table (n_designs, 6), columns :data:`VARIABLES`: a scrambled Sobol sequence
-    (seeded) over the bounds."""
+    """The design table (n_designs, 6), columns :data:`VARIABLES`: the first n_designs points of
+    a scrambled Sobol sequence (seeded, 2^m points drawn) over the bounds."""
     from scipy.stats import qmc
 
-    unit = qmc.Sobol(len(VARIABLES), scramble=True, seed=spec.seed).random(spec.n_designs)
+    m = max(0, int(np.ceil(np.log2(spec.n_designs))))
+    unit = qmc.Sobol(len(VARIABLES), scramble=True, seed=spec.seed).random_base2(m)[:spec.n_designs]
     lo = np.array([spec.bounds[k][0] for k in VARIABLES])
     hi = np.array([spec.bounds[k][1] for k in VARIABLES])
     return lo + unit * (hi - lo)
