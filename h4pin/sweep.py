@@ -195,12 +195,13 @@ def _open_store(path: Path, spec: Spec):
             raise ParameterError(f"path: {path} holds a different sweep (spec {stored}); use another path")
         return group
     group = zarr.open_group(str(path), mode="w")
+    create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
     table = designs(spec)
-    arr = group.create_array("designs", shape=table.shape, chunks=(spec.chunk, table.shape[1]), dtype="float64")
+    arr = create("designs", shape=table.shape, chunks=(spec.chunk, table.shape[1]), dtype="float64")
     arr[:] = table
     for name, (dtype, fill) in _RESULTS.items():
-        group.create_array(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
-    group.create_array("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
+        create(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
+    create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
     group.attrs["variables"] = list(VARIABLES)
     group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3"}
     group.attrs["spec"] = spec.to_json()  # written last: a store without it is not a sweep yet
