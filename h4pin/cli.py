@@ -223,6 +223,76 @@ def export(
         fail(f"cannot write {mjcf}: {exc.strerror or exc}")
 
 
+@app.command()
+def atlas(
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    x: tuple[float, float, int] = typer.Option((-0.3, 0.3, 61), metavar="LO HI N", help="x grid, m"),
+    y: tuple[float, float, int] = typer.Option((-0.3, 0.3, 61), metavar="LO HI N", help="y grid, m"),
+    z: list[float] | None = typer.Option(None, help="z of a slice, m; repeat for several (default: centre z)"),
+    z_range: tuple[float, float, int] | None = typer.Option(None, metavar="LO HI N", help="3-D box: z grid, m"),
+    theta: list[float] | None = typer.Option(None, help="theta of a slice, rad; repeat for several (default 0)"),
+    model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
+    out: Path = typer.Option(Path("atlas.nc"), help="output file: .nc (NetCDF) or .zarr"),
+    figures: Path | None = typer.Option(None, help="folder for the maps atlas_<quantity>.png"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability."""
+    import numpy as np
+
+    from h4pin import atlas as atlas_module
+    from h4pin.table2 import centre_pose
+
+    if z and z_range:
+        fail("give --z or --z-range, not both")
+    h4 = load_robot(variant, urdf)
+    grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
+    zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
+    ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet)
+    ok = ds.status.values == 0
+    typer.echo(f"{ok.sum()} of {ok.size} poses reachable and regular")
+    if ok.any():
+        c = ds.compliance_max.values[ok] * 1e6
+        typer.echo(f"worst-direction compliance {c.min():.1f} to {c.max():.1f} um/N")
+    typer.echo(f"wrote {atlas_module.save(ds, out)}")
+    if figures is not None:
+        for path in atlas_module.plot(ds, figures):
+            typer.echo(f"wrote {path}")
+
+
+@app.command()
+def sweep(
+    out: Path = typer.Option(Path("sweep.zarr"), help="zarr store of the results (resumed if it exists)"),
+    designs: int = typer.Option(1000, help="number of designs (Sobol sequence over the design space)"),
+    seed: int = typer.Option(0, help="seed of the Sobol sequence"),
+    chunk: int = typer.Option(64, help="designs per task (and per zarr chunk)"),
+    model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
+    workers: int | None = typer.Option(None, help="run on a Dask LocalCluster with this many workers"),
+    scheduler: str | None = typer.Option(None, help="run on the Dask scheduler at this address"),
+    threads: int | None = typer.Option(None, help="numba threads per task (default: all locally, 1 on Dask)"),
+    pareto: Path | None = typer.Option(None, help="write the Pareto figure here (PNG)"),
+    urdf_dir: Path | None = typer.Option(None, help="write the best designs here as URDF variants"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Design sweep: which designs reach the task box, their worst compliance and workspace volume."""
+    from h4pin import sweep as sweep_module
+
+    spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model)
+    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
+    front = sweep_module.pareto(res)
+    typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
+               f"{res['reach_all'].sum()} reach the whole task box, {front.size} on the Pareto front")
+    for d in front:
+        typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3")
+    if pareto is not None:
+        typer.echo(f"wrote {sweep_module.plot_pareto(res, pareto)}")
+    if urdf_dir is not None:
+        if not urdf_dir.is_dir():
+            fail(f"--urdf-dir: folder {urdf_dir} does not exist")
+        for path in sweep_module.write_best(res, urdf_dir):
+            typer.echo(f"wrote {path}")
+
+
 def main() -> None:
     """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
     try:

@@ -29,6 +29,8 @@ number of the scaled M1 (:func:`condition_number`) is not below :data:`SINGULAR_
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -41,7 +43,7 @@ from h4pin.model import H4Geometry
 
 TERMS = ("control", "bending", "torsion", "tension")
 MODELS = ("paper", "consistent")
-METHODS = ("auto", "closed_form", "pinocchio")
+METHODS = ("auto", "kernel", "closed_form", "pinocchio")
 #: Status of a pose given as NaN (only with ``on_error="nan"``).
 INVALID = 5
 #: Singularity threshold on :func:`condition_number`. K's relative error is about
@@ -101,6 +103,40 @@ def eq30_terms(inv: np.ndarray, mats: Matrices, comp: dict[str, np.ndarray], mod
     }
 
 
+class LazyTerms(Mapping):
+    """The four terms of eq. 30, computed on first access (a read-only mapping of name -> array).
+
+    A compliance result carries one, so that a user who does not look at the terms does not pay
+    for them (time, and 2 KB a pose)."""
+
+    def __init__(self, compute: Callable[[], Mapping[str, np.ndarray]]):
+        self._compute: Callable[[], Mapping[str, np.ndarray]] | None = compute
+        self._data: dict[str, np.ndarray] | None = None
+
+    def _get(self) -> dict[str, np.ndarray]:
+        if self._data is None:
+            self._data = dict(self._compute())  # type: ignore[misc]
+            self._compute = None
+        return self._data
+
+    @property
+    def computed(self) -> bool:
+        """Whether the terms have been computed yet."""
+        return self._data is not None
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._get()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(TERMS)
+
+    def __repr__(self) -> str:
+        return f"LazyTerms({'computed' if self.computed else 'not computed yet'}: {', '.join(TERMS)})"
+
+
 @dataclasses.dataclass(frozen=True)
 class Compliance:
     """Compliance of an H4 at one pose (shapes as below) or a batch (a leading N axis).
@@ -108,7 +144,7 @@ class Compliance:
     Attributes:
         matrix: (8, 8) K of eq. 30, dtp = K Gamma_ext, SI (m/N, rad/N, m/(N.m), rad/(N.m)).
         terms: "control", "bending", "torsion", "tension": (8, 8) each, summing to ``matrix``;
-            ``None`` unless asked for (``compliance(..., terms=True)``, the default for one pose).
+            computed on first access (:class:`LazyTerms`) unless ``compliance(..., terms=True)``.
         pose: (4,) [x, y, z, theta] in m, rad.
         q: (4,) actuator angles in rad.
         model: "paper" or "consistent".
@@ -121,7 +157,7 @@ class Compliance:
     """
 
     matrix: np.ndarray
-    terms: dict[str, np.ndarray] | None
+    terms: Mapping[str, np.ndarray]
     pose: np.ndarray
     q: np.ndarray
     model: str
@@ -213,14 +249,33 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
             its typed error (:class:`h4pin.UnreachablePoseError` and subclasses,
             :class:`h4pin.SingularPoseError`) naming its index. ``"nan"``: such poses (and NaN
             poses) give NaN matrices, ``valid`` False and their ``status``.
-        method: ``"pinocchio"`` (Pinocchio's frame Jacobians, one pose at a time),
-            ``"closed_form"`` (vectorised closed forms), ``"auto"`` (closed form).
-        terms: Keep the four terms (default: yes for one pose, no for a batch).
+        method: ``"kernel"`` (the compiled kernel, :mod:`h4pin.kernel`; robots with exact
+            parallelograms), ``"pinocchio"`` (Pinocchio's frame Jacobians, one pose at a time),
+            ``"closed_form"`` (vectorised numpy closed forms, the reference), ``"auto"`` (the
+            kernel when it applies, else the closed form). Every method gives the same verdicts.
+        terms: Compute the four terms now (``True``); by default they are computed when first
+            accessed (:attr:`Compliance.terms`).
 
     Returns:
         A :class:`Compliance`.
     """
     _check_options(model, on_error, method)
+    if (not terms and method == "auto" and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
+            and pose.dtype == np.float64 and math.isfinite(pose.sum()) and h4.geometry.ideal):
+        # The fast path of one pose: one compiled call; anything but a regular pose goes the long way.
+        K, q, cond, status = _kernel(h4)(pose, model)
+        if status == OK:
+            x = pose.copy()
+            return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True).terms), x, q, model,
+                              cond, 0, None)
+    if not terms:
+        res = _compliance(h4, pose, model, on_error, method, False)
+        lazy = LazyTerms(lambda: _compliance(h4, pose, model, "nan", method, True).terms)
+        return dataclasses.replace(res, terms=lazy)
+    return _compliance(h4, pose, model, on_error, method, True)
+
+
+def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, keep: bool) -> Compliance:
     raw = np.asarray(pose, dtype=float) if on_error == "nan" else None
     if raw is not None and raw.ndim == 2 and raw.shape[-1] == 4:
         finite = np.all(np.isfinite(raw), axis=1)
@@ -230,8 +285,11 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
         finite = np.ones(len(x) if x.ndim == 2 else 1, dtype=bool)
     single = x.ndim == 1
     xb = x[None] if single else x
-    keep = single if terms is None else bool(terms)
     g: H4Geometry = h4.geometry
+    if method == "auto":
+        method = "kernel" if g.ideal else "closed_form"
+    if method == "kernel":
+        return _kernel_path(h4, x, xb, finite, single, model, on_error, keep)
     n = len(xb)
     status = np.full(n, INVALID, dtype=np.int8)
     detail: list[str | None] = [f"pose #{k} is not finite: {xb[k]}" for k in range(n)]
@@ -285,6 +343,55 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
         return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()}, x,
                           q[0], model, float(cond[0]), int(status[0]), np.array(valid[0]))
     return Compliance(matrix, out_terms, x, q, model, cond, status, None if on_error == "raise" else valid)
+
+
+def _kernel(h4) -> Any:
+    """The robot's packed kernel, made once (the robot is immutable once loaded)."""
+    from h4pin import kernel
+
+    kern = getattr(h4, "_kernel", None)
+    if kern is None:
+        kern = kernel.prepare(h4.geometry)
+        h4._kernel = kern
+    return kern
+
+
+def _kernel_path(h4, x: np.ndarray, xb: np.ndarray, finite: np.ndarray, single: bool, model: str, on_error: str,
+                 keep: bool) -> Compliance:
+    from h4pin import kernel
+
+    kern = _kernel(h4)
+    if single and not keep and finite[0]:
+        K, q, cond, status = kern(xb[0], model)
+        matrix, qs, conds, statuses, terms = K[None], q[None], np.array([cond]), np.array([status], np.int8), None
+    else:
+        n = len(xb)
+        matrix, qs = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
+        conds, statuses = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
+        terms = {t: np.full((n, 8, 8), np.nan) for t in TERMS} if keep else None
+        idx = np.flatnonzero(finite)
+        if idx.size:
+            res = kernel.compliance_batch(kern, np.ascontiguousarray(xb[idx]), model, terms=keep)
+            matrix[idx], qs[idx], conds[idx], statuses[idx] = res.K, res.q, res.condition, res.status
+            if keep:
+                for t, name in enumerate(TERMS):
+                    terms[name][idx] = res.terms[:, t]
+    if on_error == "raise" and np.any(statuses != OK):
+        k = int(np.argmax(statuses != OK))
+        if statuses[k] == SINGULAR:
+            detail = (f"M1 is singular (cond = {conds[k]:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion that "
+                      "no spring resists")
+        elif statuses[k] == INVALID:
+            detail = f"pose #{k} is not finite: {xb[k]}"
+        else:
+            detail = geometry.solve(h4.geometry, xb[k]).detail[0]
+        geometry.raise_for_status(np.array([statuses[k]]), [detail], batch=False) if single else \
+            geometry.raise_for_status(statuses, [None] * k + [detail] + [None] * (len(statuses) - k - 1), batch=True)
+    valid = statuses == OK
+    if single:
+        return Compliance(matrix[0], None if terms is None else {t: v[0] for t, v in terms.items()}, x, qs[0], model,
+                          float(conds[0]), int(statuses[0]), None if on_error == "raise" else np.array(valid[0]))
+    return Compliance(matrix, terms, x, qs, model, conds, statuses, None if on_error == "raise" else valid)
 
 
 def describe_status(status: int) -> str:

@@ -5,22 +5,27 @@
 Rows: the vectorised batch path (eq. 30 with the inverse geometry, model "paper"), the
 single-pose path through Pinocchio's Jacobians, a straightforward per-pose numpy implementation
 of eq. 30 (loops, np.cross, explicit inverses: what one writes first), and the two validation
-routes. The naive implementation is also compared to h4pin's result, so the table is only
-printed if both agree.
+routes; then the compiled kernel (:mod:`h4pin.kernel`) on 1 and 2 threads, one pose through it,
+its memory per pose, and optionally a 1e7-pose streaming run (``--big``), the Dask overhead per
+task (``--dask``) and a design sweep of 10 000 designs x 1 000 poses (``--sweep``). The naive
+implementation and the kernel are compared to h4pin's result, so the table is only printed if
+they agree.
 
-    python scripts/bench.py [--batch 100000] [--repeat 3]
+    python scripts/bench.py [--batch 100000] [--repeat 3] [--big] [--dask] [--sweep]
 """
 
 from __future__ import annotations
 
 import argparse
 import platform
+import resource
 import time
 
+import numba
 import numpy as np
 
 import h4pin
-from h4pin import deformed, statics
+from h4pin import deformed, kernel, statics
 from h4pin.params import LEG_LATERAL, H4Params
 from h4pin.stiffness import compliance
 from h4pin.table2 import centre_pose
@@ -98,11 +103,57 @@ def best_of(repeat: int, fn) -> float:
     return min(times)
 
 
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far, MB (Linux reports ru_maxrss in KB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tuple[str, int], float], float]:
+    """Seconds per pose of the kernel batch per (model, threads), and of one pose."""
+    kern = kernel.prepare(h4.params)
+    kernel.compliance_batch(kern, poses[:10])  # load (or compile) once
+    times = {}
+    for threads in (1, 2):
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        for model in ("paper", "consistent"):
+            run = lambda m=model: kernel.compliance_batch(kern, poses, m)  # noqa: E731
+            times[model, threads] = best_of(repeat, run) / len(poses)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    x = poses[0]
+    kern(x)
+    n_one = 20_000
+    t_one = best_of(repeat, lambda: [kern(x) for _ in range(n_one)]) / n_one
+    return times, t_one
+
+
+def big_stream(h4: h4pin.H4, n: int, chunk: int) -> tuple[float, float, float]:
+    """Stream n poses (generated chunk by chunk) to a reduction: (seconds, peak RSS MB, worst
+    translational compliance m/N)."""
+    rng = np.random.default_rng(1)
+    centre = centre_pose(h4)
+    kern = kernel.prepare(h4.params)
+
+    def chunks():
+        for start in range(0, n, chunk):
+            yield centre + rng.uniform(-1, 1, (min(chunk, n - start), 4)) * [0.1, 0.1, 0.06, 0.4]
+
+    worst = 0.0
+    t0 = time.perf_counter()
+    for _, part in kernel.iter_compliance(kern, chunks(), "paper", chunk=chunk):
+        ok = part.status == kernel.OK
+        worst = max(worst, float(np.max(part.K[:, [0, 1, 2], [0, 1, 2]][ok], initial=0.0)))
+    return time.perf_counter() - t0, peak_rss_mb(), worst
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=100_000, help="poses in the batch row")
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs per row")
     parser.add_argument("--tolerance", action="store_true", help="also time the tolerance study (10 000 x 100)")
+    parser.add_argument("--big", action="store_true", help="also stream 1e7 poses through the kernel")
+    parser.add_argument("--dask", action="store_true", help="also measure the Dask overhead per task")
+    parser.add_argument("--sweep", action="store_true", help="also time 10 000 designs x 1 000 poses")
+    parser.add_argument("--designs", type=int, default=10_000, help="designs in the sweep row")
     args = parser.parse_args()
     h4 = h4pin.load("prototype")
     rng = np.random.default_rng(0)
@@ -117,18 +168,25 @@ def main() -> None:
     t_naive = best_of(args.repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
     t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
+    t_kernel, t_one = kernel_rows(h4, poses, args.repeat)
 
     ours = compliance(h4, few[:50], "paper").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])
     agree = np.max(np.abs(ours - naive)) / np.max(np.abs(ours))
     if agree > 1e-10:
         raise SystemExit(f"naive eq. 30 and h4pin disagree: {agree:.1e} relative")
+    fast = kernel.compliance_batch(h4.params, poses, "paper")
+    ref = compliance(h4, poses, "paper").matrix
+    agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
+    if agree_k > 1e-12:
+        raise SystemExit(f"kernel and h4pin disagree: {agree_k:.1e} relative")
+    bytes_per_pose = sum(a.nbytes for a in fast if a is not None) / len(poses)
 
     per_pose = t_batch / len(poses)
     print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {len(poses)} batch poses, "
-          f"best of {args.repeat} (naive vs h4pin: {agree:.1e} relative)\n")
-    print(f"| {'path':<52} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} |")
-    print(f"|{'-' * 54}|{'-' * 12}|{'-' * 11}|{'-' * 10}|")
+          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, kernel vs h4pin: {agree_k:.1e} relative)\n")
+    print(f"| {'path':<58} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} | {'vs batch':>8} |")
+    print(f"|{'-' * 60}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|")
     rows = [
         ("batch, model 'paper', incl. inverse geometry", per_pose),
         ("batch, model 'consistent', incl. inverse geometry", t_batch_c / len(poses)),
@@ -137,8 +195,46 @@ def main() -> None:
         ("validation: Newton-Euler statics route", t_statics),
         ("validation: finite-difference route (non-linear)", t_fd),
     ]
+    for (model, threads), t in t_kernel.items():
+        rows.append((f"kernel batch, '{model}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", t))
+    rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t_one))
     for name, t in rows:
-        print(f"| {name:<52} | {1 / t:>10.0f} | {t * 1e6:>9.1f} | {t_naive / t:>7.1f}x |")
+        print(f"| {name:<58} | {1 / t:>10.0f} | {t * 1e6:>9.2f} | {t_naive / t:>7.1f}x | {per_pose / t:>7.2f}x |")
+    print(f"\nkernel output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status)")
+
+    print("\ntargets:")
+    one_core = min(1 / t_kernel["paper", 1], 1 / t_kernel["consistent", 1])
+    two_cores = min(1 / t_kernel["paper", 2], 1 / t_kernel["consistent", 2])
+    checks = [
+        ("batch, 1 core >= 400 000 poses/s", one_core, 400_000, "poses/s"),
+        ("batch, 2 cores >= 1.8x 1 core", two_cores / one_core, 1.8, "x"),
+        ("one pose <= 10 us", 10e-6 / t_one, 1.0, "x of 10 us"),
+        ("<= 0.6 KB/pose without terms", 600 / bytes_per_pose, 1.0, "x of 600 B"),
+    ]
+    for name, got, want, unit in checks:
+        verdict = "met" if got >= want else f"MISSED by {(1 - got / want):.0%}"
+        print(f"  {name:<36} {got:>12,.2f} {unit:<12} {verdict}")
+    print(f"  (numba threads available: {numba.config.NUMBA_NUM_THREADS}, threading layer: "
+          f"{numba.threading_layer()})")
+
+    if args.big:
+        n = 10_000_000
+        secs, rss, worst = big_stream(h4, n, kernel.CHUNK)
+        print(f"\nstreaming {n:.0e} poses in chunks of {kernel.CHUNK}: {secs:.1f} s ({n / secs:,.0f} poses/s), "
+              f"peak RSS {rss:.0f} MB (target < 1024 MB: {'met' if rss < 1024 else 'MISSED'}), "
+              f"worst K_xx {worst * 1e6:.1f} um/N")
+    if args.dask or args.sweep:
+        from h4pin import sweep
+
+        if args.dask:
+            over = sweep.dask_overhead(workers=2)
+            print(f"\nDask LocalCluster (2 workers): {over * 1e3:.2f} ms overhead per task")
+        if args.sweep:
+            print(f"\nsweep: {args.designs} designs x 1000 task poses (+ the volume grid)")
+            for label, kwargs in (("1 core", {"threads": 1}), ("2 cores", {"threads": 2}),
+                                  ("2 Dask workers", {"threads": 1, "workers": 2})):
+                secs, evals = sweep.bench(args.designs, **kwargs)
+                print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
     if args.tolerance:
         bench_tolerance()
 
