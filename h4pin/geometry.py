@@ -15,6 +15,7 @@ method on the eight bar closures, started from the closed form.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -85,6 +86,8 @@ def as_poses(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
 
 def as_pose(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
     """One pose (4,) as float64; a batch or a wrong shape is a :class:`PoseError` naming ``name``."""
+    if type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype == np.float64 and math.isfinite(pose.sum()):
+        return pose
     x = as_poses(pose, name)
     if x.ndim != 1:
         raise PoseError(f"{name} must be one pose of shape (4,), got shape {x.shape}")

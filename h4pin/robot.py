@@ -24,6 +24,7 @@ passive velocities follow from the actuated ones: ``v_p = -Jc_p^-1 Jc_a v_a``.
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -31,7 +32,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from h4pin import geometry
+from h4pin import _fast, geometry
 from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, URDFNotFoundError
 from h4pin.geometry import PlateState, Points
 from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
@@ -312,7 +313,12 @@ class H4:
         order = [f"{i}{j}" for i in range(1, 5) for j in (1, 2)]
         self._point_frames = [self.frames[n] for n in ["D", "C_1", "C_2"] + [f"B_{s}" for s in order]
                               + [f"A_{s}" for s in order]]
+        parents = [m.frames[f].parentJoint for f in self._point_frames]
+        self._point_joints = sorted(set(parents) | set(lateral) | set(act))
+        self._point_joint_index = np.array([self._point_joints.index(j) for j in parents])
+        self._point_local = np.array([m.frames[f].placement.translation for f in self._point_frames])
         self._q_neutral = q0
+        self._compliances = self.geometry.compliances()
 
     def _springs(self, extras: URDFExtras, override: dict[str, Any], act: list[int],
                  bar_links: list[str]) -> dict[str, np.ndarray]:
@@ -389,6 +395,14 @@ class H4:
     def state(self, pose: np.ndarray, *, check: bool = True) -> PlateState:
         """The assembled :class:`h4pin.geometry.PlateState` of one pose (raises on a bad pose)."""
         x = geometry.as_pose(pose)
+        if check and self.geometry.ideal:
+            from h4pin.stiffness import _kernel
+
+            _, q, _, status = _kernel(self)(x)  # the compiled closed form and its verdict
+            if status in (geometry.OK, geometry.SINGULAR):
+                c, s = math.cos(x[3]), math.sin(x[3])
+                return PlateState(q, x[:3].copy(), np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+                                  np.array([-x[3], -x[3]]))
         sol = geometry.solve(self.geometry, x, check=check)
         geometry.raise_for_status(sol.status, sol.detail, batch=False)
         return sol.state
@@ -411,25 +425,19 @@ class H4:
         take the bar's end to the direction of B_ij; the branch closest to the reference).
         """
         g = self.geometry
-        q_act = np.asarray(state.q, float)
-        aij = geometry.forearm_points(g, q_act)
-        _, bij, _ = geometry.plate_points(g, np.asarray(state.D, float), np.asarray(state.R, float),
-                                          np.asarray(state.omega, float))
-        # Target direction of each bar in the forearm's reference orientation.
-        qb = np.repeat(q_act, 2)
-        ub = np.repeat(g.u, 2, axis=0)
-        w = geometry.rotate(bij - aij, ub, -qb)
-        norm_p = np.linalg.norm(self._p0, axis=1)
-        t = w * (norm_p / np.linalg.norm(w, axis=1))[:, None]
-        alpha, beta = _universal_angles(self._e1, self._e2, self._p0, t)
+        q_act = np.ascontiguousarray(state.q, dtype=float)
+        R = np.ascontiguousarray(state.R, dtype=float)
+        D = np.ascontiguousarray(state.D, dtype=float)
+        omega = np.ascontiguousarray(state.omega, dtype=float)
+        alpha, beta = _fast.universal_angles(q_act, D, R, omega, g.P, g.u, g.A0, g.lat, g.C0, g.b, g.v, self._e1,
+                                             self._e2, self._p0)
         q = self._q_neutral.copy()
         q[self._q_act] = q_act
         q[self._q_u[:, 0]] = alpha
         q[self._q_u[:, 1]] = beta
-        R = np.asarray(state.R, float)
-        world = pin.SE3(R @ self._X0.rotation, R @ (self._X0.translation - self._D0) + np.asarray(state.D, float))
+        world = pin.SE3(R @ self._X0.rotation, R @ (self._X0.translation - self._D0) + D)
         q[self._q_plate:self._q_plate + 7] = pin.SE3ToXYZQUAT(self._X0.inverse() * world)
-        q[self._q_lat] = self._lat_sign * np.asarray(state.omega, float)
+        q[self._q_lat] = self._lat_sign * omega
         return q
 
     def kinematics(self, pose: np.ndarray) -> Kinematics:
@@ -450,8 +458,9 @@ class H4:
         q = self.assemble(st)
         m, d = self.model, self.data
         pin.computeJointJacobians(m, d, q)
-        pin.updateFramePlacements(m, d)
-        xyz = np.array([d.oMf[f].translation for f in self._point_frames])
+        homog = np.array([d.oMi[j].homogeneous for j in self._point_joints])
+        xyz = np.einsum("nab,nb->na", homog[self._point_joint_index, :3, :3], self._point_local) \
+            + homog[self._point_joint_index, :3, 3]
         g = self.geometry
         bij, aij = xyz[3:11], xyz[11:19]
         lwa = pin.LOCAL_WORLD_ALIGNED
@@ -460,8 +469,8 @@ class H4:
         to_tp[:6, :6] = jd[:, :6]
         jlat = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self._v_plate] for j in self._jid_lat])
         jact = np.stack([pin.getJointJacobian(m, d, j, lwa)[:, self.v_act] for j in self._jid_act])
-        olat = np.array([d.oMi[j].translation for j in self._jid_lat])
-        oact = np.array([d.oMi[j].translation for j in self._jid_act])
+        olat = homog[[self._point_joints.index(j) for j in self._jid_lat], :3, 3]
+        oact = homog[[self._point_joints.index(j) for j in self._jid_act], :3, 3]
         jl, ja = jlat[g.lat], jact[np.arange(8) // 2]
         jb = jl[:, :3] - _cross_columns(bij - olat[g.lat], jl[:, 3:])
         ja = ja[:, :3] - _cross_columns(aij - oact[np.arange(8) // 2], ja[:, 3:])
@@ -469,6 +478,26 @@ class H4:
         pts = Points(D=xyz[0], C=xyz[1:3], B=bij.reshape(4, 2, 3).mean(axis=1), Bij=bij.reshape(4, 2, 3), P=g.P,
                      A=aij.reshape(4, 2, 3).mean(axis=1), Aij=aij.reshape(4, 2, 3), v=v_world.T)
         return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
+
+    def pinocchio_compliance(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, float, np.ndarray]:
+        """K (8, 8) of eq. 30, the scaled condition number of M1 and J (4, 4) at one pose, through
+        Pinocchio: the assembled configuration, ``computeJointJacobians`` and the joint
+        placements; M1 (eq. 6) and M2 M3 (eq. 11) from Pinocchio's world-frame joint Jacobians
+        shifted to the B_ij and A_ij points (compiled arithmetic, :func:`h4pin._fast.pinocchio_matrices`).
+
+        Raises:
+            UnreachablePoseError (and subclasses): the robot cannot take the pose.
+        """
+        q = self.configuration(pose)
+        m, d = self.model, self.data
+        pin.computeJointJacobians(m, d, q)
+        homog = np.array([d.oMi[j].homogeneous for j in self._point_joints])
+        c = self._compliances
+        K, cond, J, _, _ = _fast.pinocchio_matrices(d.J, homog, self._point_joint_index, self._point_local,
+                                                     self._v_plate, self.v_act, self.geometry.lat, self.geometry.P,
+                                                     self.geometry.u, c["control"], c["bending"], c["torsion"],
+                                                     c["tension"], 1 if model == "consistent" else 0)
+        return K, cond, J
 
     def closure_residuals(self, q: np.ndarray) -> np.ndarray:
         """Position errors of the 8 closures at configuration q, (8, 3) in m, from Pinocchio."""
@@ -571,38 +600,6 @@ class H4:
     def __repr__(self) -> str:
         return (f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, "
                 f"closures={len(self.constraint_models)})")
-
-
-def _universal_angles(e1: np.ndarray, e2: np.ndarray, p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angles (alpha, beta) with ``Rot(e1, alpha) Rot(e2, beta) p = t`` for each row (Paden-Kahan
-    subproblem 2: two rotations about axes through one point), the branch with the smaller
-    |beta|. ``|p| = |t|``; axes are unit, not parallel."""
-    c12 = np.sum(e1 * e2, axis=1)
-    e1t, e2p = np.sum(e1 * t, axis=1), np.sum(e2 * p, axis=1)
-    den = 1.0 - c12**2
-    a = (e1t - c12 * e2p) / den
-    b = (e2p - c12 * e1t) / den
-    n = geometry.cross(e1, e2)
-    g2 = (np.sum(p * p, axis=1) - a * a - b * b - 2 * a * b * c12) / np.sum(n * n, axis=1)
-    gam = np.sqrt(np.maximum(g2, 0.0))
-    best = None
-    for s in (1.0, -1.0):
-        c = a[:, None] * e1 + b[:, None] * e2 + (s * gam)[:, None] * n
-        beta = _angle_about(e2, p, c)
-        alpha = _angle_about(e1, c, t)
-        if best is None:
-            best = (alpha, beta)
-        else:
-            pick = np.abs(beta) < np.abs(best[1])
-            best = (np.where(pick, alpha, best[0]), np.where(pick, beta, best[1]))
-    return best  # type: ignore[return-value]
-
-
-def _angle_about(axis: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Angle of the rotation about ``axis`` taking x to y (their parts normal to the axis)."""
-    xp = x - axis * np.sum(axis * x, axis=1, keepdims=True)
-    yp = y - axis * np.sum(axis * y, axis=1, keepdims=True)
-    return np.arctan2(np.sum(axis * geometry.cross(xp, yp), axis=1), np.sum(xp * yp, axis=1))
 
 
 def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from h4pin import geometry
-from h4pin.errors import LoadError, ParameterError
+from h4pin.errors import LoadError, ParameterError, SingularPoseError
 from h4pin.geometry import OK, SINGULAR, STATUS_NAMES
 from h4pin.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, from_points, n_matrix
 from h4pin.model import H4Geometry
@@ -268,6 +268,15 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
             x = pose.copy()
             return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True).terms), x, q, model,
                               cond, 0, None)
+    if not terms and method == "pinocchio" and on_error == "raise" and np.shape(pose) == (4,):
+        x = geometry.as_pose(pose).copy()
+        K, cond, _ = h4.pinocchio_compliance(x, model)  # raises the typed error of a pose it cannot take
+        if not cond < SINGULAR_COND:
+            raise SingularPoseError(f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a "
+                                    "motion that no spring resists")
+        q = h4.state(x).q
+        return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True).terms), x, q, model,
+                          cond, 0, None)
     if not terms:
         res = _compliance(h4, pose, model, on_error, method, False)
         lazy = LazyTerms(lambda: _compliance(h4, pose, model, "nan", method, True).terms)
@@ -310,6 +319,17 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
             continue
         sel = idx[ok]
         q[sel] = sol.state.q[ok]
+        if method == "pinocchio" and not keep:
+            for k in sel:
+                K, c, _ = h4.pinocchio_compliance(xb[k], model)
+                cond[k] = c
+                if c < SINGULAR_COND:
+                    matrix[k] = K
+                else:
+                    status[k] = SINGULAR
+                    detail[k] = (f"M1 is singular (cond = {c:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion "
+                                 "that no spring resists")
+            continue
         if method == "pinocchio":
             mats_list = [from_kinematics(h4.kinematics(xb[k])) for k in sel]
             mats = Matrices(*(np.stack([getattr(m, f) for m in mats_list]) if f not in ("M5", "R")
