@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from h4pin import kernel
 from h4pin.errors import ParameterError
+from h4pin.files import save_figure
 
 #: The quantities of an atlas, with their units and a description.
 QUANTITIES = {
@@ -223,14 +224,5 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
         fig.suptitle(f"H4 atlas ({ds.attrs.get('model', '')} model): {QUANTITIES.get(q, ('', 'verdict'))[1]}",
                      fontsize=9)
         target = folder / f"{prefix}{q}.png"
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".png", dir=folder)
-        os.close(fd)
-        try:
-            fig.savefig(tmp, dpi=110)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, target)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        written.append(target)
+        written.append(save_figure(fig, target, dpi=110))
     return written

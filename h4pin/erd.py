@@ -62,8 +62,10 @@ def srdf(h4, name: str = "h4") -> str:
 
 
 def _short(v: float) -> str:
-    """12 significant digits, round-off zeros as 0 (the file must not change with the numpy build)."""
-    return "0" if abs(v) < 1e-13 else f"{v:.12g}"
+    """To 1e-12 and at most 12 significant digits, round-off zeros as 0: the file must not change
+    with the last bits of a computation (numpy or compiled, another build)."""
+    r = round(v, 12)
+    return "0" if r == 0 else f"{r:.12g}"
 
 
 def _own_dirs() -> list[Path]:

@@ -23,7 +23,6 @@ Pinocchio joint (so MuJoCo's ``qpos`` follows Pinocchio's joint order):
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -31,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import ParameterError
+from h4pin.files import write_text
 
 #: MuJoCo time step (s) written in the MJCF.
 TIMESTEP = 1e-4
@@ -191,17 +191,7 @@ def write_mjcf(h4, path: str | os.PathLike) -> Path:
         raise IsADirectoryError(f"path: {path} is a folder")
     if not path.parent.is_dir():
         raise FileNotFoundError(f"path: no folder {path.parent}")
-    text = to_mjcf(h4, path.stem)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_text(path, to_mjcf(h4, path.stem))
 
 
 __all__ = ["SOLIMP", "SOLREF", "TIMESTEP", "qpos", "to_mjcf", "write_mjcf"]

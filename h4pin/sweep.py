@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -33,6 +32,7 @@ import numpy as np
 
 from h4pin import kernel
 from h4pin.errors import ParameterError
+from h4pin.files import save_figure
 from h4pin.params import H4Params
 
 #: The design variables, in order: name -> (unit, meaning).
@@ -340,11 +340,7 @@ def plot_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
     ax.set_ylabel("worst compliance over the task box [um/N]")
     ax.set_title(f"{spec.n_designs} designs, {len(spec.task.poses())} task poses, model '{spec.model}'", fontsize=9)
     ax.legend(fontsize=7)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def _noop(x: int) -> int:

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -43,6 +42,7 @@ import numpy as np
 
 from h4pin import geometry
 from h4pin.errors import ParameterError
+from h4pin.files import save_figure
 from h4pin.geometry import cross, exp_so3, rot_z, rotate
 from h4pin.matrices import R_PAPER
 from h4pin.model import H4Geometry
@@ -541,16 +541,7 @@ def write_figure(res: ToleranceResult, path: str | Path) -> Path:
     fig.suptitle(f"H4 tolerance study: {r} robots x {m} poses (dashed: 5, 50, 95 %; compliance as deviation "
                  "from nominal)")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=90)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return save_figure(fig, path, dpi=90)
 
 
 __all__ = ["DEFAULT_SIGMAS", "KINDS", "OUTPUTS", "BatchGeometry", "ToleranceResult", "check_sigmas", "default_poses",

@@ -36,14 +36,13 @@ section Sb; the plate is aluminium rods; each universal-joint cross is a 20 g st
 from __future__ import annotations
 
 import dataclasses
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from h4pin.errors import MalformedURDFError
+from h4pin.files import write_text
 from h4pin.model import ACTUATOR_LIMITS, LATERAL_LIMITS
 from h4pin.params import LEG_LATERAL, H4Params
 
@@ -431,17 +430,5 @@ def write_urdf(params: H4Params, path: str | Path, name: str | None = None) -> P
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder (mode 0644)."""
-    path = Path(path)
-    if path.is_dir():
-        raise IsADirectoryError(f"{path} is a directory")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    """Write ``text`` to ``path`` atomically, mode 0644 (:func:`h4pin.files.write_text`)."""
+    return write_text(path, text)

@@ -42,6 +42,7 @@ from tqdm import tqdm
 
 from h4pin import geometry, meshcat_server
 from h4pin.deflection import deflected_configuration, deflection
+from h4pin.files import write_text
 from h4pin.robot import H4
 from h4pin.stiffness import as_load, compliance
 from h4pin.table2 import centre_pose
@@ -278,18 +279,7 @@ class Scene:
 
     def write_html(self, path: str | Path) -> Path:
         """Write :meth:`html` to ``path`` atomically (no partial file if anything fails)."""
-        path = Path(path)
-        text = self.html()
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+        return write_text(path, self.html())
 
     def close(self) -> None:
         """Stop the meshcat server this scene started (``Visualizer.close`` does not); idempotent."""

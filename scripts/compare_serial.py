@@ -21,8 +21,6 @@ distributions to docs/serial_vs_h4.png. Needs the ``erd`` extra (example-robot-d
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -33,6 +31,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import h4pin  # noqa: E402
+from h4pin.files import save_figure
 from h4pin.serial import UR5_JOINT_STIFFNESS, serial_compliance  # noqa: E402
 from h4pin.stiffness import compliance  # noqa: E402
 from h4pin.table2 import centre_pose  # noqa: E402
@@ -129,15 +128,7 @@ def main() -> None:
     ax[2].set_title(f"{SPAN * 1e3:.0f} x {SPAN * 1e3:.0f} mm box, 3 heights 50 mm apart", fontsize=10)
     ax[2].legend(fontsize=9)
     fig.suptitle("Largest eigenvalue of the 3x3 translational compliance (mid-height maps; all heights at right)")
-    fd, tmp = tempfile.mkstemp(prefix=f".{args.out.name}.", suffix=".png", dir=args.out.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=100)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, args.out)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    save_figure(fig, args.out, dpi=100)
     print(f"wrote {args.out}")
 
 

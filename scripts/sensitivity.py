@@ -14,8 +14,6 @@ linear in each compliance), and what the other entries become with it.
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -26,6 +24,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 import h4pin  # noqa: E402
+from h4pin.files import save_figure
 from h4pin.stiffness import TERMS, compliance  # noqa: E402
 from h4pin.table2 import CENTRE_Q, PAPER_COMPUTED, PAPER_MEASURED  # noqa: E402
 
@@ -111,16 +110,7 @@ def plot(results: dict[str, np.ndarray], path: Path) -> None:
     fig.suptitle("H4 prototype at q_i = 45 deg: Table II entries vs the parameters the paper does not give "
                  "(dotted: h4pin default)")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=90)
-        os.chmod(tmp, 0o644)  # mkstemp makes it 0600
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    save_figure(fig, path, dpi=90)
 
 
 def main() -> None:
