@@ -255,6 +255,15 @@ def _seg_dist2(A, B, n1, n2):
     return x * x + y * y + z * z
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rank1(M, s, u, v):
+    """M += s u v^T (8 x 8)."""
+    for a in range(8):
+        sa = s * u[a]
+        for c in range(8):
+            M[a, c] += sa * v[c]
+
+
 @njit(cache=True, nogil=True)
 def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws):
     """One pose: fills K (8, 8), qo (4,), optionally T (4, 8, 8) and Jo (4, 4); returns
@@ -404,32 +413,23 @@ def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W,
     if want_jac:
         for i in range(4):
             Jo[0, i], Jo[1, i], Jo[2, i], Jo[3, i] = Gc[0, i], Gc[1, i], Gc[2, i], Gc[5, i]
+    # Rank-one updates of eq. 30 into K, or with the terms into T[term] (then K = their sum).
     if want_terms:
         T[:] = 0.0
     for a in range(8):
         for c in range(8):
             K[a, c] = 0.0
-    # Actuator springs: control and bending (eqs. 12, 15).
+    # Actuator springs: control and bending (eqs. 12, 15), column G_i, load row L_i.
     for i in range(4):
         cc, cb = G[_CCTRL + i], G[_CBEND + i]
-        csum = cc + cb
-        for a in range(8):
-            ga = Gc[a, i]
-            for c in range(8):
-                if model == 0:
-                    if c < 3:
-                        v = ga * Gc[c, i]
-                    elif c == 5:
-                        v = ga * Gc[5, i]
-                    else:
-                        continue
-                else:
-                    v = ga * Gc[c, i]
-                if want_terms:
-                    T[0, a, c] += cc * v
-                    T[1, a, c] += cb * v
-                else:
-                    K[a, c] += csum * v
+        for c in range(8):
+            ws[2, c] = Gc[c, i]
+            ws[3, c] = Gc[c, i] if (model == 1 or c < 3 or c == 5) else 0.0
+        if want_terms:
+            _rank1(T[0], cc, ws[2], ws[3])
+            _rank1(T[1], cb, ws[2], ws[3])
+        else:
+            _rank1(K, cc + cb, ws[2], ws[3])
     # Forearm torsion (eq. 23): per leg c_i (sum_j d_n Y[:, n]) (sum_j e_n l_n Y[:, n])^T.
     for i in range(4):
         amx = 0.5 * (A[2 * i, 0] + A[2 * i + 1, 0])
@@ -455,24 +455,12 @@ def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W,
             for a in range(8):
                 ws[0, a] += Y[a, n] * d
                 ws[1, a] += Y[a, n] * e
-        ctor = G[_CTORS + i]
-        for a in range(8):
-            va = ctor * ws[0, a]
-            for c in range(8):
-                if want_terms:
-                    T[2, a, c] += va * ws[1, c]
-                else:
-                    K[a, c] += va * ws[1, c]
+        _rank1(T[2] if want_terms else K, G[_CTORS + i], ws[0], ws[1])
     # Bar tension (eq. 27): sum_n c_n l_n^2 Y[:, n] Y[:, n]^T.
     for n in range(8):
-        cl = G[_CTENS + n] * lw[n] * lw[n]
         for a in range(8):
-            va = cl * Y[a, n]
-            for c in range(8):
-                if want_terms:
-                    T[3, a, c] += va * Y[c, n]
-                else:
-                    K[a, c] += va * Y[c, n]
+            ws[4, a] = Y[a, n]
+        _rank1(T[3] if want_terms else K, G[_CTENS + n] * lw[n] * lw[n], ws[4], ws[4])
     if want_terms:
         for a in range(8):
             for c in range(8):
