@@ -172,6 +172,8 @@ def view(
 
 @app.command()
 def tolerance(
+    variant: str | None = typer.Option(None, help="nominal robot: shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="nominal robot: path to an H4 URDF instead of a variant"),
     robots: int = typer.Option(1000, help="robots drawn"),
     seed: int = typer.Option(0, help="seed of the draws"),
     sigma: list[str] = typer.Option([], metavar="NAME=METRES",
@@ -183,7 +185,6 @@ def tolerance(
     """Tolerance study: compliance and static pose error of robots with manufacturing errors."""
     from h4pin import tolerance as tol
     from h4pin.errors import ParameterError
-    from h4pin.robot import load
 
     sigmas: dict[str, float] = {}
     for item in sigma:
@@ -194,7 +195,7 @@ def tolerance(
     sigmas = tol.check_sigmas(sigmas)
     if figure is not None and not figure.parent.is_dir():
         fail(f"cannot write {figure}: folder {figure.parent} does not exist")
-    h4 = load("prototype")
+    h4 = load_robot(variant, urdf)
     res = tol.study(h4, n_robots=robots, sigmas=sigmas, seed=seed, model=model, progress=True)
     sens = tol.sensitivity(h4, n_robots=min(robots, 1000), sigmas=sigmas, seed=seed, model=model) if sensitivity \
         else None
