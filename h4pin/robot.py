@@ -32,6 +32,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import geometry
+from h4pin.elements import COUNTS, ELEMENTS, Elements, check_elements
 from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, URDFNotFoundError
 from h4pin.geometry import PlateState, Points
 from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
@@ -115,6 +116,8 @@ class H4:
 
     Attributes:
         geometry: :class:`h4pin.model.H4Geometry`, read from the model at load.
+        elements: :class:`h4pin.elements.Elements`, the data of the elements eq. 30 neglects,
+            read from the URDF's ``<h4_revolute>`` and ``<h4_ball>`` (all off when absent).
         model, data: Pinocchio model and its data.
         visual_model, collision_model: Pinocchio geometry models.
         constraint_models, constraint_datas: the 8 ``CONTACT_3D`` closures, bar ij at B_ij,
@@ -277,6 +280,7 @@ class H4:
 
         self.actuated_joint_names = tuple(m.names[j] for j in act)
         data = self._springs(extras, springs, act, bar_links)
+        self.elements = self._elements(extras, lateral, bar_links)
         lo, hi = m.lowerPositionLimit, m.upperPositionLimit
         q_idx = [m.joints[j].idx_q for j in act]
         lat_idx = [m.joints[j].idx_q for j in lateral]
@@ -356,6 +360,19 @@ class H4:
                     raise self._err(f"the {owners[name][k]}: spring datum '{name}' = {float(bad[k])!r} is not physical "
                                     "(finite and > 0 needed)") from None
             raise
+
+    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str]) -> Elements:
+        """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
+        links); a missing element or attribute is off (0)."""
+        joints = [self.model.names[j] for j in lateral]
+        owners, values = {}, {}
+        for name in ELEMENTS:
+            per_joint = COUNTS[name] == 2
+            keys = joints if per_joint else bar_links
+            tag, attr = ("h4_revolute", name.split("_")[1]) if per_joint else ("h4_ball", "radial")
+            owners[name] = [f"{'lateral joint' if per_joint else 'bar link'} '{key}' (<{tag} {attr}>)" for key in keys]
+            values[name] = [extras.springs.get(key, {}).get(name, 0.0) for key in keys]
+        return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
 
     # ----------------------------------------------------------------- geometry
     @property
