@@ -71,7 +71,7 @@ def report_fitted(h4: H4, model: str = "paper") -> str:
     from h4pin import identify
     from h4pin.robot import load
 
-    fitted = load(identify.fitted_params())
+    fitted = load("fitted")
     point = identify.fitted_point()
     tables = {
         "h4pin, at D": compliance(h4, centre_pose(h4), model).translational * 1e6,

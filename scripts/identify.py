@@ -150,7 +150,7 @@ def main() -> None:
           f"{np.max(np.abs(comp.model - comp.target)) <= gap.ROUNDING}")
 
     default = h4pin.load("prototype")
-    fitted = h4pin.load(identify.fitted_params())
+    fitted = h4pin.load("fitted")
     tables = {
         "h4pin default, at D": compliance(default, default.forward_geometry(CENTRE_Q)).translational,
         "fitted variant, at p": compliance(fitted, fitted.forward_geometry(CENTRE_Q)).at(identify.fitted_point()),
