@@ -116,8 +116,7 @@ class H4:
 
     Attributes:
         geometry: :class:`h4pin.model.H4Geometry`, read from the model at load.
-        elements: :class:`h4pin.elements.Elements`, the data of the elements eq. 30 neglects,
-            read from the URDF's ``<h4_revolute>`` and ``<h4_ball>`` (all off when absent).
+        elements: the data of the elements eq. 30 neglects (property).
         model, data: Pinocchio model and its data.
         visual_model, collision_model: Pinocchio geometry models.
         constraint_models, constraint_datas: the 8 ``CONTACT_3D`` closures, bar ij at B_ij,
@@ -280,7 +279,7 @@ class H4:
 
         self.actuated_joint_names = tuple(m.names[j] for j in act)
         data = self._springs(extras, springs, act, bar_links)
-        self.elements = self._elements(extras, lateral, bar_links)
+        self._element_data = self._elements(extras, lateral, bar_links)
         lo, hi = m.lowerPositionLimit, m.upperPositionLimit
         q_idx = [m.joints[j].idx_q for j in act]
         lat_idx = [m.joints[j].idx_q for j in lateral]
@@ -375,6 +374,12 @@ class H4:
         return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
 
     # ----------------------------------------------------------------- geometry
+    @property
+    def elements(self) -> Elements:
+        """The data of the elements eq. 30 neglects (:class:`h4pin.elements.Elements`), read from
+        the URDF's ``<h4_revolute>`` and ``<h4_ball>``; all off when the URDF has none."""
+        return self._element_data
+
     @property
     def params(self) -> H4Params:
         """The nominal :class:`H4Params` of this robot, if its layout is one they describe.
