@@ -33,7 +33,7 @@ from tqdm import tqdm
 
 from h4pin import kernel
 from h4pin.errors import ParameterError
-from h4pin.files import save_figure
+from h4pin.files import make_readable, save_figure
 
 #: The quantities of an atlas, with their units and a description.
 QUANTITIES = {
@@ -124,15 +124,6 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
     })
 
 
-def _chmod_tree(path: Path) -> None:
-    for root, dirs, files in os.walk(path):
-        os.chmod(root, 0o755)
-        for d in dirs:
-            os.chmod(os.path.join(root, d), 0o755)
-        for f in files:
-            os.chmod(os.path.join(root, f), 0o644)
-
-
 def save(ds: xr.Dataset, path: str | Path) -> Path:
     """Write an atlas atomically: ``.nc`` (NetCDF4 through h5netcdf) or ``.zarr`` (a folder).
     Files are mode 0644; nothing is left half-written if the write fails."""
@@ -151,7 +142,7 @@ def save(ds: xr.Dataset, path: str | Path) -> Path:
         else:
             target = tmp / path.name
             ds.to_zarr(target, mode="w", consolidated=False)
-            _chmod_tree(target)
+            make_readable(target)
             if path.exists():
                 os.replace(path, tmp / "old")
             os.replace(target, path)

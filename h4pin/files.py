@@ -40,6 +40,17 @@ def write_text(path: str | Path, text: str) -> Path:
     return write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
+def make_readable(path: str | Path) -> Path:
+    """Make a folder written by a library (a zarr store) world-readable: folders 0755, files 0644."""
+    for root, dirs, files in os.walk(path):
+        os.chmod(root, 0o755)
+        for d in dirs:
+            os.chmod(os.path.join(root, d), 0o755)
+        for f in files:
+            os.chmod(os.path.join(root, f), 0o644)
+    return Path(path)
+
+
 def save_figure(fig: Any, path: str | Path, dpi: int = 100) -> Path:
     """Save a matplotlib figure to ``path`` atomically, mode 0644, and close it if pyplot made it."""
     try:

@@ -45,13 +45,13 @@ def entries(block: np.ndarray) -> np.ndarray:
     return np.stack([block[..., a, b] for a, b in ENTRIES.values()], axis=-1)
 
 
-def term_blocks(params: h4pin.H4Params | None = None) -> dict[str, np.ndarray]:
+def term_blocks(robot: h4pin.H4 | h4pin.H4Params | None = None) -> dict[str, np.ndarray]:
     """The translational block (3, 3) of each term at q_i = 45 deg, m/N.
 
-    The robot is built with ``h4pin.load(params)``; the translational block is the same in the
-    ``paper`` and ``consistent`` models.
+    ``robot``: a loaded robot, or parameters (built with ``h4pin.load(params)``; default the
+    prototype's). The translational block is the same in the ``paper`` and ``consistent`` models.
     """
-    h4 = h4pin.load(params or h4pin.H4Params())
+    h4 = robot if isinstance(robot, h4pin.H4) else h4pin.load(robot or h4pin.H4Params())
     res = compliance(h4, centre_pose(h4))
     return {t: res.terms[t][:3, :3].copy() for t in TERMS}
 

@@ -315,9 +315,21 @@ def toleranced_params(base: H4Params | None = None, seed: int = 2005, scale: flo
     )
 
 
+def fitted_params(base: H4Params | None = None) -> H4Params:
+    """The ``fitted`` variant: the prototype with the revolute joints C_k, the half-width, the
+    torsion (I0) and the axial (kc, E) compliances identified on the paper's measured Table II
+    (:func:`h4pin.identify.fitted_params`, ``docs/gap.md``). Its Table II is taken at the
+    identified measuring point :func:`h4pin.identify.fitted_point`, not at D. Never the default.
+    """
+    from h4pin import identify  # scipy and the stiffness model: imported only when asked for
+
+    return identify.fitted_params(base)
+
+
 #: Named variants shipped as URDF files in ``urdf/h4_<name>.urdf``.
 VARIANTS = {
     "prototype": H4Params,
     "symmetric": symmetric_params,
     "toleranced": toleranced_params,
+    "fitted": fitted_params,
 }

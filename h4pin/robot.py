@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import _fast, geometry
+from h4pin.elements import COUNTS, ELEMENTS, Elements, check_elements
 from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, URDFNotFoundError
 from h4pin.geometry import PlateState, Points
 from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
@@ -61,7 +62,7 @@ def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any]
     """Load an H4: a variant name, a path to a URDF file, or an :class:`H4Params`.
 
     Args:
-        source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"`` (see
+        source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"``, ``"fitted"`` (see
             :data:`h4pin.VARIANTS`), a path to any H4 URDF (an existing file is always taken as
             a path), or parameters (the URDF is then generated in memory).
         springs: Spring data given or overridden at load, by H4Params field name: ``kc``, ``E``,
@@ -116,6 +117,7 @@ class H4:
 
     Attributes:
         geometry: :class:`h4pin.model.H4Geometry`, read from the model at load.
+        elements: the data of the elements eq. 30 neglects (property).
         model, data: Pinocchio model and its data.
         visual_model, collision_model: Pinocchio geometry models.
         constraint_models, constraint_datas: the 8 ``CONTACT_3D`` closures, bar ij at B_ij,
@@ -278,6 +280,7 @@ class H4:
 
         self.actuated_joint_names = tuple(m.names[j] for j in act)
         data = self._springs(extras, springs, act, bar_links)
+        self._element_data = self._elements(extras, lateral, bar_links)
         lo, hi = m.lowerPositionLimit, m.upperPositionLimit
         q_idx = [m.joints[j].idx_q for j in act]
         lat_idx = [m.joints[j].idx_q for j in lateral]
@@ -363,7 +366,26 @@ class H4:
                                     "(finite and > 0 needed)") from None
             raise
 
+    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str]) -> Elements:
+        """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
+        links); a missing element or attribute is off (0)."""
+        joints = [self.model.names[j] for j in lateral]
+        owners, values = {}, {}
+        for name in ELEMENTS:
+            per_joint = COUNTS[name] == 2
+            keys = joints if per_joint else bar_links
+            tag, attr = ("h4_revolute", name.split("_")[1]) if per_joint else ("h4_ball", "radial")
+            owners[name] = [f"{'lateral joint' if per_joint else 'bar link'} '{key}' (<{tag} {attr}>)" for key in keys]
+            values[name] = [extras.springs.get(key, {}).get(name, 0.0) for key in keys]
+        return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
+
     # ----------------------------------------------------------------- geometry
+    @property
+    def elements(self) -> Elements:
+        """The data of the elements eq. 30 neglects (:class:`h4pin.elements.Elements`), read from
+        the URDF's ``<h4_revolute>`` and ``<h4_ball>``; all off when the URDF has none."""
+        return self._element_data
+
     @property
     def params(self) -> H4Params:
         """The nominal :class:`H4Params` of this robot, if its layout is one they describe.

@@ -174,20 +174,6 @@ class Compliance:
         """dtp (8,) (or (N, 8)) for a load Gamma_ext (8,) or a force F (3,) at D, SI."""
         return self.matrix @ as_load(load)
 
-
-def as_load(load: Any) -> np.ndarray:
-    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
-    try:
-        g = np.asarray(load, dtype=float)
-    except (TypeError, ValueError):
-        raise LoadError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
-    if g.shape == (3,):
-        g = np.r_[g, np.zeros(5)]
-    if g.shape != (8,) or not np.all(np.isfinite(g)):
-        raise LoadError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
-                        f"got {load!r}")
-    return g
-
     def at(self, offset: np.ndarray, load_at: np.ndarray | None = None) -> np.ndarray:
         """Translational compliance (3, 3) (or (N, 3, 3)) at a point p fixed to the central bar,
         for a force applied at p' (default p' = p), SI (m/N).
@@ -206,7 +192,7 @@ def as_load(load: Any) -> np.ndarray:
         def transform(o: np.ndarray) -> np.ndarray:
             o = np.asarray(o, dtype=float)
             if o.shape[-1:] != (3,):
-                raise ValueError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
+                raise ParameterError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
             r = np.einsum("...ab,...b->...a", rot, o)
             t = np.zeros((*r.shape[:-1], 3, 6))
             t[..., :, :3] = np.eye(3)
@@ -216,6 +202,20 @@ def as_load(load: Any) -> np.ndarray:
         tp = transform(offset)
         tq = tp if load_at is None else transform(load_at)
         return tp @ self.matrix[..., :6, :6] @ np.swapaxes(tq, -1, -2)
+
+
+def as_load(load: Any) -> np.ndarray:
+    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
+    try:
+        g = np.asarray(load, dtype=float)
+    except (TypeError, ValueError):
+        raise LoadError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
+    if g.shape == (3,):
+        g = np.r_[g, np.zeros(5)]
+    if g.shape != (8,) or not np.all(np.isfinite(g)):
+        raise LoadError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
+                        f"got {load!r}")
+    return g
 
 
 def matrices_at(h4, pose: np.ndarray) -> Matrices:

@@ -32,7 +32,7 @@ import numpy as np
 
 from h4pin import kernel
 from h4pin.errors import ParameterError
-from h4pin.files import save_figure
+from h4pin.files import make_readable, save_figure
 from h4pin.params import H4Params
 
 #: The design variables, in order: name -> (unit, meaning).
@@ -251,6 +251,7 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
                 write(*future.result())
                 bar.update()
     bar.close()
+    make_readable(path)
     return load(path)
 
 

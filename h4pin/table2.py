@@ -60,8 +60,9 @@ def report(h4: H4, model: str = "paper") -> str:
     lines += ["", "per-term split [um/N]:  " + "  ".join(f"{t:>9}" for t in TERMS)]
     for a, b in ((0, 0), (1, 1), (2, 2), (0, 2)):
         lines.append(f"  d{rows[a]}/F{rows[b]}{'':<16}" + "  ".join(f"{res.terms[t][a, b] * 1e6:9.2f}" for t in TERMS))
-    lines += ["", "The gap to the paper comes from prototype data the paper does not give (half-width, C_k, "
-              "section shapes);", "defaults are not tuned to the table. See scripts/sensitivity.py for what closes it."]
+    lines += ["", "No choice of spring constants reaches the paper's computed table at the stated geometry, and "
+              "the measured one", "is outside the model at D; defaults are not tuned to either. See docs/gap.md "
+              "(h4pin table2 --fitted)."]
     return "\n".join(lines)
 
 
@@ -71,7 +72,7 @@ def report_fitted(h4: H4, model: str = "paper") -> str:
     from h4pin import identify
     from h4pin.robot import load
 
-    fitted = load(identify.fitted_params())
+    fitted = load("fitted")
     point = identify.fitted_point()
     tables = {
         "h4pin, at D": compliance(h4, centre_pose(h4), model).translational * 1e6,

@@ -25,48 +25,61 @@ import pinocchio as pin
 
 from h4pin import geometry
 from h4pin.deformed import DeformedH4
-from h4pin.params import LEG_LATERAL, H4Params
+from h4pin.model import H4Geometry
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def _normal_pair(axis: np.ndarray) -> np.ndarray:
+    """(3, 2): two orthonormal vectors normal to the unit ``axis``, as columns."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    return np.column_stack([e1, np.cross(axis, e1)])
+
+
 def world_offset(pose: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """p - D (3,) in m for an offset o (3,) given in the central-bar frame: Rz(theta) o."""
-    return geometry.rot_z(float(pose[3])) @ np.asarray(offset, dtype=float)
+    return geometry.rot_z(float(np.asarray(pose)[3])) @ np.asarray(offset, dtype=float)
 
 
-def bar_forces_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
+def _pose_points(g: H4Geometry, pose: np.ndarray) -> tuple[np.ndarray, geometry.Points]:
+    x = geometry.as_pose(pose)
+    sol = geometry.solve(g, x, check=False)
+    geometry.raise_for_status(sol.status, sol.detail, batch=False)
+    return x, geometry.points(g, sol.state)
+
+
+def bar_forces_at(g: H4Geometry, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
     """Bar tensions (8, 3) per unit force at p' (offset ``load_at`` (3,) m, central-bar frame).
 
     Unknowns: tensions f (8), then for each lateral bar k the joint force F_k (3) and the joint
-    moments about x and y M_k (2), acting on lateral bar k (minus them on the central bar); the
-    joint carries no moment about its axis z (no torque is applied). Equations: force and moment
+    moment M_k normal to the joint axis v_k (2), acting on lateral bar k (minus them on the
+    central bar); the joint carries no moment about its axis (no torque is applied). Equations: force and moment
     (about D) balance of the central bar and of each lateral bar. Bar ij in tension pulls B_ij
     towards A_ij.
     """
-    x = geometry.as_poses(pose)
-    q = geometry.inverse_geometry(params, x)
-    pts = geometry.points(params, x, q)
+    x, pts = _pose_points(g, pose)
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     b = pts.Bij.reshape(8, 3) - pts.D  # lever arms about D
-    lat = np.repeat(LEG_LATERAL, 2)
     a = np.zeros((18, 18))
     for k in range(2):
         cf, cm = 8 + 5 * k, 11 + 5 * k
         ck = pts.C[k] - pts.D
+        normal = _normal_pair(pts.v[k])
         # central bar: -F_k at C_k, -M_k
         a[0:3, cf:cf + 3] -= np.eye(3)
         a[3:6, cf:cf + 3] -= _skew(ck)
-        a[3:6, cm:cm + 2] -= np.eye(3)[:, :2]
+        a[3:6, cm:cm + 2] -= normal
         # lateral bar k: +F_k at C_k, +M_k, and its bars
         r0 = 6 + 6 * k
         a[r0:r0 + 3, cf:cf + 3] += np.eye(3)
         a[r0 + 3:r0 + 6, cf:cf + 3] += _skew(ck)
-        a[r0 + 3:r0 + 6, cm:cm + 2] += np.eye(3)[:, :2]
-        for n in np.flatnonzero(lat == k):
+        a[r0 + 3:r0 + 6, cm:cm + 2] += normal
+        for n in np.flatnonzero(g.lat == k):
             a[r0:r0 + 3, n] = -w[n]
             a[r0 + 3:r0 + 6, n] = -np.cross(b[n], w[n])
     arm = world_offset(x, load_at)
@@ -76,14 +89,12 @@ def bar_forces_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> np
     return np.linalg.solve(a, rhs)[:8]
 
 
-def spring_loads_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
+def spring_loads_at(g: H4Geometry, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
     """Load of each spring (16, 3) per unit force at p', ordered as ``eps`` in
     :meth:`h4pin.deformed.DeformedH4.anchors`: moment about u_i on forearm i (4, N.m/N), moment
     about the forearm axis (4, N.m/N), bar tension (8, N/N)."""
-    x = geometry.as_poses(pose)
-    q = geometry.inverse_geometry(params, x)
-    pts = geometry.points(params, x, q)
-    f = bar_forces_at(params, x, load_at)
+    x, pts = _pose_points(g, pose)
+    f = bar_forces_at(g, x, load_at)
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     aij = pts.Aij.reshape(8, 3)
@@ -91,43 +102,43 @@ def spring_loads_at(params: H4Params, pose: np.ndarray, load_at: np.ndarray) -> 
     for n in range(8):
         i = n // 2
         e = (pts.A[i] - pts.P[i]) / np.linalg.norm(pts.A[i] - pts.P[i])
-        out[i] += params.U[:, i] @ np.cross(aij[n] - pts.P[i], w[n]) * f[n]
+        out[i] += g.u[i] @ np.cross(aij[n] - pts.P[i], w[n]) * f[n]
         out[4 + i] += e @ np.cross(aij[n] - pts.A[i], w[n]) * f[n]
     out[8:] = f
     return out
 
 
-def point_sensitivities(params: H4Params, pose: np.ndarray, offset: np.ndarray, step: float = 1e-6) -> np.ndarray:
+def point_sensitivities(g: H4Geometry, pose: np.ndarray, offset: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """``dp / d eps`` (3, 16) of the point p (offset (3,) m, central-bar frame) by central
     differences of the deformed robot: the plate is solved non-linearly and p moves rigidly
     with the central bar (``p = D + exp(Omega) Rz(theta) o``)."""
-    robot = DeformedH4(params, pose)
+    robot = DeformedH4(g, pose)
     o = np.asarray(offset, dtype=float)
     rot = geometry.rot_z(float(robot.pose[3]))
 
     def point(tp: np.ndarray) -> np.ndarray:
-        return robot.pose[:3] + tp[:3] + pin.exp3(tp[3:6]) @ rot @ o
+        return robot.state.D + tp[:3] + pin.exp3(tp[3:6]) @ rot @ o
 
-    g = np.empty((3, 16))
+    out = np.empty((3, 16))
     for s in range(16):
         e = np.zeros(16)
         e[s] = step
-        g[:, s] = (point(robot.solve_plate(e)) - point(robot.solve_plate(-e))) / (2 * step)
-    return g
+        out[:, s] = (point(robot.solve_plate(e)) - point(robot.solve_plate(-e))) / (2 * step)
+    return out
 
 
-def spring_compliances(params: H4Params) -> np.ndarray:
+def spring_compliances(g: H4Geometry) -> np.ndarray:
     """Compliance of each of the 16 springs (16,): actuator + bending per forearm rotation
-    (rad/(N.m)), torsion (rad/(N.m)), bar tension (m/N)."""
-    c = params.compliances()
-    return np.r_[np.full(4, c["control"] + c["bending"]), np.full(4, c["torsion"]), np.full(8, c["tension"])]
+    (rad/(N.m)), torsion (rad/(N.m)), bar tension (m/N), each element its own."""
+    c = g.compliances()
+    return np.r_[c["control"] + c["bending"], c["torsion"], c["tension"]]
 
 
-def point_compliance(params: H4Params, pose: np.ndarray, offset: np.ndarray, load_at: np.ndarray | None = None,
+def point_compliance(g: H4Geometry, pose: np.ndarray, offset: np.ndarray, load_at: np.ndarray | None = None,
                      step: float = 1e-6) -> np.ndarray:
     """``C_pp'`` (3, 3) in m/N by statics (spring loads for a force at p') and finite differences
     of the deformed robot (motion of p per spring deformation); ``load_at`` defaults to ``offset``."""
     load_at = offset if load_at is None else load_at
-    g_load = spring_loads_at(params, pose, load_at)
-    g_move = point_sensitivities(params, pose, offset, step)
-    return (g_move * spring_compliances(params)) @ g_load
+    g_load = spring_loads_at(g, pose, load_at)
+    g_move = point_sensitivities(g, pose, offset, step)
+    return (g_move * spring_compliances(g)) @ g_load

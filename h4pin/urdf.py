@@ -12,6 +12,9 @@ ignore them; h4pin reads them with an XML parser, :func:`parse`):
   ``<joint>``, ``<h4_forearm E= I= G= I0= stressed_fraction=/>`` inside each forearm ``<link>``,
   ``<h4_bar Sb= Eb=/>`` inside each bar ``<link>``. Editing a joint, or copying a leg, takes its
   data along, and a tree cannot disagree with a table kept elsewhere;
+* optional data of the elements eq. 30 neglects (:mod:`h4pin.elements`, off when absent):
+  ``<h4_revolute radial= axial= tilt=/>`` inside each lateral revolute ``<joint>``,
+  ``<h4_ball radial=/>`` inside each bar ``<link>`` (both ball joints of the bar);
 * ``<h4pin format="2" units="SI"/>``: the version of these conventions and the units.
 
 Geometry is never read from a side element: :func:`h4pin.load` takes every length and position
@@ -38,6 +41,7 @@ from __future__ import annotations
 import dataclasses
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -45,6 +49,9 @@ from h4pin.errors import MalformedURDFError
 from h4pin.files import write_text
 from h4pin.model import ACTUATOR_LIMITS, LATERAL_LIMITS
 from h4pin.params import LEG_LATERAL, H4Params
+
+if TYPE_CHECKING:
+    from h4pin.elements import Elements
 
 FORMAT_VERSION = "2"
 RHO_ALUMINIUM = 2700.0  # kg/m^3
@@ -176,10 +183,12 @@ def _frame(name: str, parent: str, xyz: np.ndarray) -> str:
     return f'  <link name="{name}"/>\n' + _joint(f"{name}_frame", "fixed", parent, name, xyz)
 
 
-def to_urdf(params: H4Params, name: str = "h4") -> str:
+def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None) -> str:
     """URDF text of the H4 described by ``params`` (see the module docstring for its layout).
 
-    The text is deterministic: the same parameters always give the same bytes.
+    ``elements``: data of the neglected elements (:class:`h4pin.elements.Elements`) to write
+    inline (``<h4_revolute>`` in the lateral joints, ``<h4_ball>`` in the bar links); none by
+    default. The text is deterministic: the same parameters always give the same bytes.
     """
     p = params
     a = p.forearm_dirs.T
@@ -219,7 +228,10 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
             parts.append(_joint(b["u1"], "revolute", n["forearm"], b["cross"], anchor, u[i], (-np.pi, np.pi)))
             bar = _Body()
             bar.rod(np.zeros(3), np.array([0.0, 0.0, -p.l[nb]]), BAR_RADIUS, RHO_CARBON, bar_inner[nb])
-            parts.append(bar.xml(b["bar"], "bar", f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'))
+            bar_data = f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'
+            if elements is not None:
+                bar_data += f'\n    <h4_ball radial="{_num(elements.ball_radial[nb])}"/>'
+            parts.append(bar.xml(b["bar"], "bar", bar_data))
             parts.append(_joint(b["u2"], "revolute", b["cross"], b["bar"], np.zeros(3), a[i], (-np.pi, np.pi)))
             parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l[nb]])))
 
@@ -240,8 +252,11 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
             for j in range(2):
                 lateral.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
         parts.append(lateral.xml(n["link"], "plate"))
+        joint_data = "" if elements is None else (
+            f'<h4_revolute radial="{_num(elements.revolute_radial[k])}" axial="{_num(elements.revolute_axial[k])}" '
+            f'tilt="{_num(elements.revolute_tilt[k])}"/>')
         parts.append(_joint(n["joint"], "revolute", "central_bar", n["link"], p.DC[:, k], np.array([0.0, 0.0, 1.0]),
-                            LATERAL_LIMITS))
+                            LATERAL_LIMITS, joint_data))
         parts.append(_frame(n["C"], n["link"], np.zeros(3)))
         for i in np.flatnonzero(LEG_LATERAL == k):
             parts.append(_frame(leg_names(i + 1)["B"], n["link"], p.DB[:, i] - p.DC[:, k]))
@@ -274,12 +289,15 @@ def to_urdf(params: H4Params, name: str = "h4") -> str:
     return "\n".join([*header, marker, *parts, *closures, "</robot>", ""])
 
 
-#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field).
+#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field, or the
+#: :class:`h4pin.elements.Elements` field for the optional elements h4_revolute, h4_ball).
 SPRING_ELEMENTS = {
     "h4_actuator": ("joint", {"kc": "kc"}),
     "h4_forearm": ("link", {"E": "E", "I": "I", "G": "G", "I0": "I0",
                             "stressed_fraction": "forearm_stressed_fraction"}),
     "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
+    "h4_revolute": ("joint", {"radial": "revolute_radial", "axial": "revolute_axial", "tilt": "revolute_tilt"}),
+    "h4_ball": ("link", {"radial": "ball_radial"}),
 }
 
 
@@ -301,7 +319,8 @@ class URDFExtras:
 
     Attributes:
         closures: the ``<constraint>`` elements, in file order.
-        springs: ``{element name: {field: value}}`` for joints (kc) and links (forearm, bar data).
+        springs: ``{element name: {field: value}}`` for joints (kc; the optional revolute
+            element data) and links (forearm, bar data; the optional ball-joint data).
         joint_child: ``{joint name: child link name}``.
     """
 

@@ -3,14 +3,18 @@
 """Term-by-term report of Table II with the elements eq. 30 neglects (h4pin.elements).
 
 At q_i = 45 deg, with illustrative element compliances (orders of magnitude of bearings and ball
-joints, not prototype data): each term's xx, yy, zz, xz in um/N and its share; each element's
-shape against the two shapes of eq. 30 (docs/gap.md); and the element compliance that would add
+joints, not prototype data; the same value for every joint of a kind), or with the elements
+written in a URDF (``--urdf``, ``<h4_revolute>`` and ``<h4_ball>``, see h4pin.elements): each
+term's xx, yy, zz, xz in um/N and its share; each element's shape against the two shapes of
+eq. 30 (docs/gap.md); and the element compliance (every element of that kind) that would add
 1 um/N to xx (each term is linear in its compliance).
 
-    python scripts/elements_report.py
+    python scripts/elements_report.py [--urdf my_h4.urdf]
 """
 
 from __future__ import annotations
+
+import argparse
 
 import numpy as np
 
@@ -24,25 +28,37 @@ UNITS = {"revolute_radial": "m/N", "revolute_axial": "m/N", "revolute_tilt": "ra
 STIFFNESS = {"m/N": "N/m", "rad/(N.m)": "N.m/rad"}
 
 
+def _values(v: np.ndarray) -> str:
+    return f"{v[0]:.0e}" if np.ptp(v) == 0 else "[" + " ".join(f"{x:.1e}" for x in v) + "]"
+
+
 def main() -> None:
-    h4 = h4pin.load("prototype")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--urdf", help="an H4 URDF with <h4_revolute>/<h4_ball> elements (default: the prototype "
+                                       "with illustrative elements)")
+    args = parser.parse_args()
+    h4 = h4pin.load(args.urdf or "prototype")
+    elements = h4.elements if args.urdf else el.ILLUSTRATIVE
     pose = centre_pose(h4)
-    entries = el.term_entries(h4, pose, el.ILLUSTRATIVE)
+    entries = el.term_entries(h4, pose, elements)
     total = sum(entries.values())
-    print("Elements (illustrative): " + ", ".join(f"{n} = {getattr(el.ILLUSTRATIVE, n):.0e} {UNITS[n]}"
-                                                 for n in el.ELEMENTS))
+    print(f"Elements ({'from ' + args.urdf if args.urdf else 'illustrative'}): "
+          + ", ".join(f"{n} = {_values(getattr(elements, n))} {UNITS[n]}" for n in el.ELEMENTS))
     print(f"\n{'term':<18}" + "".join(f"{e:>9}" for e in gap.ENTRIES) + "   share of xx   yy/xx  zz/xx  xz/xx")
     for name, v in entries.items():
         has_xx = abs(v[0]) > 1e-9 * np.abs(total).max()
         ratios = "  ".join(f"{x / v[0]:5.3f}" for x in v[1:]) if has_xx else "  (no xx)"
         print(f"{name:<18}" + "".join(f"{x * US:9.3f}" for x in v) + f"{v[0] / total[0]:12.1%}   " + ratios)
     print(f"{'total':<18}" + "".join(f"{x * US:9.3f}" for x in total))
-    terms = el.compliance_with_elements(h4, pose, el.ILLUSTRATIVE).terms
+    terms = el.compliance_with_elements(h4, pose, elements).terms
     base = {"control": terms["control"][:3, :3], "torsion": terms["torsion"][:3, :3]}
     print("\nElement shape vs the two shapes of eq. 30 (axial, tilt), and the compliance adding 1 um/N to xx:")
     for name in el.ELEMENTS:
+        if name not in terms:
+            print(f"  {name:<16} off")
+            continue
         coef, res = gap.in_span(base | {name: terms[name][:3, :3]}, name, ("control", "torsion"))
-        c = getattr(el.ILLUSTRATIVE, name)
+        c = float(np.mean(getattr(elements, name)))  # a common factor on every element of the kind
         xx = entries[name][0]
         unit = UNITS[name]
         need = (f"{c * 1e-6 / xx:.2e} {unit} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[unit]})"

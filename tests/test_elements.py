@@ -5,6 +5,7 @@ finite differences of the deformed robot, and exact reduction to eq. 30 when off
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -23,8 +24,8 @@ def test_element_terms_equal_finite_differences(proto, poses, n_pose):
     """Each element: c sum g g^T (joint reactions, bar tensions from the plate equilibrium) vs
     c sum G G^T (plate motion of the deformed robot per joint displacement, tilt, bar length)."""
     x = poses[n_pose]
-    ours = el.element_terms(proto.params, x, el.ILLUSTRATIVE)
-    fd = el.element_terms_fd(proto.params, x, el.ILLUSTRATIVE)
+    ours = el.element_terms(proto.geometry, x, el.ILLUSTRATIVE)
+    fd = el.element_terms_fd(proto.geometry, x, el.ILLUSTRATIVE)
     assert set(ours) == set(el.ELEMENTS) == set(fd)
     for name in el.ELEMENTS:
         assert rel(ours[name], fd[name]) < 1e-6, name
@@ -34,24 +35,30 @@ def test_plate_loads_agree_with_the_statics_route(proto, poses):
     """Bar tensions from this equilibrium (moments about D) = statics.bar_forces (about O);
     ball joints carry the bar tension, so their term is the tension term scaled."""
     x = poses[4]
-    assert rel(el.plate_loads(proto.params, x)["bars"], statics.bar_forces(proto.params, x)) < 1e-12
-    ball = el.element_terms(proto.params, x, el.Elements(ball_radial=3e-8))["ball_radial"]
-    tension = statics.compliance_terms(proto.params, x)["tension"]
-    assert rel(ball, tension * 2 * 3e-8 / proto.params.compliances()["tension"]) < 1e-12
+    g = proto.geometry
+    assert rel(el.plate_loads(g, x)["bars"], statics.bar_forces(g, x)) < 1e-12
+    ball = el.element_terms(g, x, el.Elements(ball_radial=3e-8))["ball_radial"]
+    tension = statics.compliance_terms(g, x)["tension"]
+    c_tension = g.compliances()["tension"]
+    assert np.ptp(c_tension) == 0.0  # the prototype's bars are equal: the terms are proportional
+    assert rel(ball, tension * 2 * 3e-8 / c_tension[0]) < 1e-12
 
 
 def test_joint_reactions_balance_the_lateral_bars(proto, poses):
-    """Sum of forces on lateral bar k: joint force + bar pulls = 0, in the central-bar frame."""
-    from h4pin.geometry import points, rot_z
+    """Sum of forces on lateral bar k: joint force + bar pulls = 0 (world frame); the joint couple
+    is normal to the joint axis."""
+    from h4pin.geometry import points
 
     x = poses[6]
-    loads = el.plate_loads(proto.params, x)
-    pts = points(proto.params, x, proto.inverse_geometry(x))
+    loads = el.plate_loads(proto.geometry, x)
+    pts = points(proto.geometry, proto.state(x))
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w /= np.linalg.norm(w, axis=1, keepdims=True)
     for k in range(2):
-        pulls = -(w[4 * k:4 * k + 4].T @ loads["bars"][4 * k:4 * k + 4])  # (3, 8) world
-        np.testing.assert_allclose(rot_z(x[3]) @ loads["force"][k] + pulls, 0.0, atol=1e-12)
+        bars = np.flatnonzero(proto.geometry.lat == k)
+        pulls = -(w[bars].T @ loads["bars"][bars])  # (3, 8) world
+        np.testing.assert_allclose(loads["force"][k] + pulls, 0.0, atol=1e-12)
+        np.testing.assert_allclose(pts.v[k] @ loads["moment"][k], 0.0, atol=1e-12)
 
 
 def test_off_is_exactly_eq_30(proto, poses):
@@ -67,8 +74,8 @@ def test_on_stays_symmetric_and_equals_the_deformed_route(proto, poses):
     x = poses[3]
     res = el.compliance_with_elements(proto, x, el.ILLUSTRATIVE)
     assert rel(res.matrix, res.matrix.T) < 1e-13 and np.linalg.eigvalsh(res.matrix).min() > 0
-    fd = sum(deformed.compliance_terms(proto.params, x).values()) + sum(
-        el.element_terms_fd(proto.params, x, el.ILLUSTRATIVE).values())
+    fd = sum(deformed.compliance_terms(proto.geometry, x).values()) + sum(
+        el.element_terms_fd(proto.geometry, x, el.ILLUSTRATIVE).values())
     assert rel(res.matrix, fd) < 1e-6
     assert rel(sum(res.terms.values()), res.matrix) < 1e-14
     assert set(res.terms) == set(TERMS) | set(el.ELEMENTS)
@@ -86,3 +93,75 @@ def test_term_entries_sum_to_the_table(proto, centre):
     table = el.compliance_with_elements(proto, centre, el.ILLUSTRATIVE).translational
     np.testing.assert_allclose(sum(entries.values()), table[[0, 1, 2, 0], [0, 1, 2, 2]], rtol=1e-14)
     assert entries["revolute_tilt"][0] > 0 and abs(entries["revolute_tilt"][2]) < 1e-12 * entries["revolute_tilt"][0]
+
+
+PER_ELEMENT = el.Elements(revolute_radial=[1e-8, 3e-8], revolute_axial=[2e-8, 0.5e-8], revolute_tilt=[5e-5, 2e-5],
+                          ball_radial=np.linspace(1e-8, 4.5e-8, 8))
+
+
+def test_per_element_values_on_a_toleranced_robot_with_tilted_joint_axes():
+    """Each joint and bar its own compliance, on a robot whose parallelograms are not exact and
+    whose lateral axes are tilted (Newton-solved plate): unit loads vs finite differences."""
+    from h4pin import load
+
+    g = load("toleranced").geometry
+    v = g.v + np.array([[0.02, -0.01, 0.0], [-0.015, 0.0, 0.0]])
+    g = g.replace(v=v / np.linalg.norm(v, axis=1, keepdims=True))
+    assert not g.ideal
+    x = np.array([0.0, 0.0, -0.43, 0.2])
+    ours = el.element_terms(g, x, PER_ELEMENT)
+    fd = el.element_terms_fd(g, x, PER_ELEMENT)
+    for name in el.ELEMENTS:
+        assert rel(ours[name], fd[name]) < 1e-6, name
+    # one element on, the others off: only its own term
+    one = el.element_terms(g, x, el.Elements(revolute_tilt=[0.0, 2e-5]))
+    assert set(one) == {"revolute_tilt"}
+    assert rel(one["revolute_tilt"], el.element_terms_fd(g, x, el.Elements(revolute_tilt=[0.0, 2e-5]))
+               ["revolute_tilt"]) < 1e-6
+
+
+def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses):
+    """<h4_revolute> in the lateral joints and <h4_ball> in the bar links, read at load, give
+    the K of the same elements passed in Python; without them the robot's elements are off."""
+    from h4pin import H4Params, load
+    from h4pin.urdf import to_urdf
+
+    assert proto.elements.off
+    text = to_urdf(H4Params(), "h4_with_elements", elements=PER_ELEMENT)
+    assert text.count("<h4_revolute ") == 2 and text.count("<h4_ball ") == 8
+    robot = load_text(text)
+    assert robot.elements.allclose(PER_ELEMENT)
+    x = poses[5]
+    from_urdf = el.compliance_with_elements(robot, x)
+    from_python = el.compliance_with_elements(proto, x, PER_ELEMENT)
+    np.testing.assert_array_equal(from_urdf.matrix, from_python.matrix)
+    assert rel(from_urdf.matrix, compliance(proto, x, "consistent").matrix) > 1e-3  # the elements count
+    # an element written by hand, one attribute only: the others stay off
+    hand = to_urdf(H4Params()).replace('<limit lower="-0.7853981633974483"', '<h4_revolute tilt="3e-5"/>\n'
+                                       '    <limit lower="-0.7853981633974483"', 1)
+    one = load_text(hand).elements
+    np.testing.assert_array_equal(one.revolute_tilt, [3e-5, 0.0])
+    assert not np.any(one.revolute_radial) and not np.any(one.ball_radial)
+    assert load(H4Params()).elements.off
+
+
+def load_text(text: str):
+    from h4pin.robot import H4
+
+    return H4(text, "test URDF")
+
+
+@pytest.mark.parametrize(("old", "new", "where"), [
+    ('<h4_ball radial="4.5e-08"/>', '<h4_ball radial="-4.5e-08"/>', "bar link 'bar_42' (<h4_ball radial>)"),
+    ('tilt="2e-05"', 'tilt="nan"', "<h4_revolute tilt> of joint 'lateral_2'"),
+    ('tilt="5e-05"', 'tilt="-5e-05"', "lateral joint 'lateral_1' (<h4_revolute tilt>)"),
+    ('axial="2e-08"', 'axial="stiff"', "<h4_revolute axial> of joint 'lateral_1'"),
+])
+def test_non_physical_element_in_the_urdf_names_it(old, new, where):
+    from h4pin import H4Params, MalformedURDFError
+    from h4pin.urdf import to_urdf
+
+    text = to_urdf(H4Params(), elements=PER_ELEMENT)
+    assert old in text
+    with pytest.raises(MalformedURDFError, match=re.escape(where)):
+        load_text(text.replace(old, new))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from h4pin import H4Params, gap, load, statics
+from h4pin.model import geometry_from_params
 from h4pin.stiffness import TERMS, compliance
 
 
@@ -16,14 +17,16 @@ def blocks():
 
 
 def test_control_and_bending_share_the_closed_form_shape(proto, centre, blocks):
-    """Control = (J J^T)_xyz / kc with J = Jx^-1 Jq (eq. 8, closed form), bending = a scalar times it."""
+    """Control = (J diag(1/kc_i) J^T)_xyz with J = Jx^-1 Jq (eq. 8, closed form), bending = a scalar
+    times it (the prototype's legs have equal springs)."""
     jx, jq = proto.jx_jq(centre)
     j = np.linalg.solve(jx, jq)
-    closed = (j @ j.T)[:3, :3] / proto.params.kc
-    np.testing.assert_allclose(blocks["control"], closed, rtol=1e-10, atol=1e-12 * closed.max())
     p = proto.params
-    np.testing.assert_allclose(blocks["bending"], closed * p.kc * p.r / (3 * p.E * p.I), rtol=1e-10,
-                               atol=1e-12 * closed.max())
+    closed = ((j / p.kc) @ j.T)[:3, :3]
+    np.testing.assert_allclose(blocks["control"], closed, rtol=1e-10, atol=1e-12 * closed.max())
+    ratio = p.kc * p.r / (3 * p.E * p.I)
+    assert np.ptp(ratio) == 0.0
+    np.testing.assert_allclose(blocks["bending"], closed * ratio[0], rtol=1e-10, atol=1e-12 * closed.max())
     shp = gap.shapes(blocks)
     np.testing.assert_allclose(shp["control"], closed / closed[0, 0], atol=1e-12)
     np.testing.assert_allclose(shp["bending"], shp["control"], atol=1e-12)
@@ -34,7 +37,7 @@ def test_control_and_bending_share_the_closed_form_shape(proto, centre, blocks):
 def test_terms_span_a_plane(centre, blocks):
     """SVD of the four term blocks from the independent statics route: rank 2, and tension is a
     non-negative combination of the axial and tilt shapes."""
-    theirs = {t: b[:3, :3] for t, b in statics.compliance_terms(H4Params(), centre).items()}
+    theirs = {t: b[:3, :3] for t, b in statics.compliance_terms(geometry_from_params(H4Params()), centre).items()}
     m = np.stack([b.ravel() / np.linalg.norm(b) for b in theirs.values()])
     s = np.linalg.svd(m, compute_uv=False)
     assert s[2] / s[0] < 1e-12 and s[1] / s[0] > 1e-2
@@ -109,8 +112,8 @@ def test_fit_region_against_robots_built_with_the_factors():
 def test_half_width_acts_only_through_tension(centre):
     """At the centre, h leaves control, bending and torsion unchanged (statics route) and moves the
     tension block within the span of the two shapes: it cannot be told from the tilt factor."""
-    a = statics.compliance_terms(H4Params(half_width=0.02), centre)
-    b = statics.compliance_terms(H4Params(half_width=0.05), centre)
+    a = statics.compliance_terms(geometry_from_params(H4Params(half_width=0.02)), centre)
+    b = statics.compliance_terms(geometry_from_params(H4Params(half_width=0.05)), centre)
     for t in ("control", "bending", "torsion"):
         np.testing.assert_allclose(b[t][:3, :3], a[t][:3, :3], rtol=1e-10, atol=1e-12 * np.abs(a[t]).max())
     change = {"tension": b["tension"][:3, :3] - a["tension"][:3, :3], "control": a["control"][:3, :3],

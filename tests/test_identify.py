@@ -79,10 +79,29 @@ def test_computed_table_is_met_within_rounding_by_the_robot_quantities():
 def test_cli_table2_fitted_prints_the_four_tables():
     out = CliRunner().invoke(app, ["table2", "--fitted"])
     assert out.exit_code == 0, out.output
-    h4 = load(identify.fitted_params())
+    h4 = load("fitted")
     at_p = compliance(h4, h4.forward_geometry(CENTRE_Q)).at(identify.fitted_point()) * 1e6
     row = next(line for line in out.output.splitlines() if line.strip().startswith("dx"))
     numbers = [float(v) for v in row.split()[1:]]
     assert len(numbers) == 12
     np.testing.assert_allclose(numbers[3:6], np.round(at_p[0], 1), atol=1e-9)
     np.testing.assert_allclose(numbers[9:12], gap.MEASURED[0] * 1e6)
+
+
+def test_fitted_is_a_named_variant_never_the_default():
+    """The shipped h4_fitted.urdf is the robot identify.fitted_params() builds; load() and the
+    package import stay the prototype and do not import the identification (scipy.optimize)."""
+    import subprocess
+    import sys
+
+    import h4pin
+
+    assert "fitted" in h4pin.VARIANTS
+    shipped, built = load("fitted"), load(identify.fitted_params())
+    x = shipped.forward_geometry(CENTRE_Q)
+    np.testing.assert_allclose(compliance(shipped, x).matrix, compliance(built, x).matrix, rtol=1e-12, atol=0)
+    assert load().source.endswith("h4_prototype.urdf")
+    assert not np.allclose(compliance(load(), x).translational, compliance(shipped, x).translational, rtol=0.05)
+    code = "import sys, h4pin; print('h4pin.identify' in sys.modules, 'scipy.optimize' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]

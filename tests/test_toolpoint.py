@@ -29,7 +29,7 @@ def test_tool_point_compliance_equals_statics_and_deformed_route(proto, poses, n
     x = poses[n_pose]
     assert abs(x[3]) > 0.02  # theta != 0: the offset is turned with the central bar
     for offset, load_at in OFFSETS:
-        route = toolpoint.point_compliance(proto.params, x, offset, load_at)
+        route = toolpoint.point_compliance(proto.geometry, x, offset, load_at)
         for model in ("paper", "consistent"):
             ours = compliance(proto, x, model).at(offset, load_at)
             assert rel(ours, route) < 1e-6, (offset, load_at, model)
@@ -43,8 +43,8 @@ def test_offset_force_equilibrium_equals_force_and_couple_at_d(proto, poses):
     x = poses[3]
     o = np.array([0.07, -0.02, 0.09])
     arm = rot_z(x[3]) @ o
-    ours = toolpoint.bar_forces_at(proto.params, x, o)
-    lam = statics.bar_forces(proto.params, x)
+    ours = toolpoint.bar_forces_at(proto.geometry, x, o)
+    lam = statics.bar_forces(proto.geometry, x)
     skew = np.array([[0, -arm[2], arm[1]], [arm[2], 0, -arm[0]], [-arm[1], arm[0], 0]])
     assert rel(ours, lam[:, :3] + lam[:, 3:6] @ skew) < 1e-12
 
