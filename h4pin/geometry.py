@@ -455,6 +455,11 @@ def forward_state(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None,
     state, converged, theta = _newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter)
     if not converged:
         raise ConvergenceError(f"forward geometry did not converge for q = {q} rad: the legs may not assemble")
+    # Polish to round-off: at a singular assembly the pose is only as good as the square root of
+    # the residual, and a verdict there must not depend on where Newton happened to stop.
+    polished, fine, theta_p = _newton(g, np.r_[state.D, theta], state, free_q=False, tol=1e-16, max_iter=8)
+    if fine:
+        state, theta = polished, theta_p
     pose = np.r_[state.D, theta]
     q_back = inverse_geometry(g, pose, on_error="nan", check=False)
     if not np.allclose(q_back, q, atol=1e-8):
