@@ -29,6 +29,12 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def _unit_bars(pts: geometry.Points) -> np.ndarray:
+    """Unit vectors A_ij -> B_ij, (8, 3)."""
+    w = (pts.Bij - pts.Aij).reshape(8, 3)
+    return w / np.linalg.norm(w, axis=1, keepdims=True)
+
+
 def _pose_points(g: H4Geometry, pose: np.ndarray) -> geometry.Points:
     x = geometry.as_pose(pose)
     sol = geometry.solve(g, x, check=False)
@@ -42,9 +48,11 @@ def bar_forces(g: H4Geometry, pose: np.ndarray) -> np.ndarray:
     Solved from the equilibrium of the central bar and the two lateral bars (moments about the
     world origin). Bar ij (n = 2(i-1) + j-1), in tension f, pulls its plate end B_ij towards A_ij.
     """
-    pts = _pose_points(g, pose)
-    w = (pts.Bij - pts.Aij).reshape(8, 3)
-    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    return _bar_forces(g, _pose_points(g, pose))
+
+
+def _bar_forces(g: H4Geometry, pts: geometry.Points) -> np.ndarray:
+    w = _unit_bars(pts)
     bij = pts.Bij.reshape(8, 3)
     # Unknowns: f (8) | F_1 (3), M_1 normal to v_1 (2) | F_2 (3), M_2 normal to v_2 (2).  F_k, M_k act on lateral bar k,
     # minus them on the central bar. Rows: central force, central moment, lateral 1 (6), lateral 2 (6).
@@ -84,9 +92,8 @@ def spring_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     the torsion spring their moment about the forearm axis (through A_i, along P_i -> A_i).
     """
     pts = _pose_points(g, pose)
-    f = bar_forces(g, pose)
-    w = (pts.Bij - pts.Aij).reshape(8, 3)
-    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    f = _bar_forces(g, pts)
+    w = _unit_bars(pts)
     aij = pts.Aij.reshape(8, 3)
     axis_moment = np.zeros((4, 8))
     twist = np.zeros((4, 8))
