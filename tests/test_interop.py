@@ -211,6 +211,7 @@ def test_actuated_joint_names_are_the_actuators(proto):
 # ----------------------------------------------------------------- example-robot-data
 def test_example_robot_data_loads_the_h4():
     erd = pytest.importorskip("example_robot_data")
+    from h4pin import erd as h4_erd
 
     assert {"h4", "h4_prototype", "h4_symmetric"} <= set(erd.ROBOTS)
     for name, variant in (("h4", "prototype"), ("h4_symmetric", "symmetric")):
@@ -219,8 +220,10 @@ def test_example_robot_data_loads_the_h4():
         h4 = h4pin.load(variant)
         assert Path(urdf).read_text() == h4.urdf
         assert Path(srdf).parent.name == "srdf" and Path(urdf).parent.name == "urdf"
-        # q0 from the SRDF: the centre configuration, to the 12 digits the SRDF keeps.
-        np.testing.assert_allclose(q0, h4.configuration(centre_pose(h4)), rtol=0, atol=1e-11)
+        # q0 from the SRDF: the configuration of the reference pose, to the 1e-12 the SRDF keeps,
+        # within a micrometre of the centre (all actuators at 45 deg).
+        np.testing.assert_allclose(q0, h4.configuration(h4_erd.reference_pose(h4)), rtol=0, atol=1e-11)
+        np.testing.assert_allclose(h4_erd.reference_pose(h4), centre_pose(h4), rtol=0, atol=5e-7)
         # The closures come with it and close at q0, on the wrapper's own model and data.
         assert len(robot.constraint_models) == 8
         pin.forwardKinematics(robot.model, robot.data, q0)

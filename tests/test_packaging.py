@@ -27,7 +27,8 @@ TEXT_SUFFIXES = {".py", ".md", ".toml", ".urdf", ".txt", ".cfg", ".yaml", ".yml"
 def repo_files() -> list[Path]:
     out = []
     for dirpath, dirnames, filenames in os.walk(ROOT):
-        dirnames[:] = [d for d in dirnames if d not in SKIP_DIRS and not d.endswith(".egg-info")]
+        dirnames[:] = [d for d in dirnames
+                       if d not in SKIP_DIRS and not d.startswith(".venv") and not d.endswith(".egg-info")]
         out += [Path(dirpath) / f for f in filenames if f != ".git"]  # a worktree's .git file
     return sorted(out)
 
