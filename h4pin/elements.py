@@ -1,26 +1,42 @@
 # SPDX-License-Identifier: Apache-2.0
 """Compliances that eq. 30 neglects, as optional elements (all off by default).
 
-Elements (SI, one value per element; 0 switches one off):
+Elements (SI, one value per element; 0 switches a compliance off, ``inf`` a rigidity):
 
 * ``revolute_radial`` (2,) m/N: each lateral-bar revolute joint C_k, in the plane normal to its
   axis v_k;
 * ``revolute_axial`` (2,) m/N: the same joint along its axis v_k;
 * ``revolute_tilt`` (2,) rad/(N.m): the same joint about the two axes normal to v_k;
 * ``ball_radial`` (8,) m/N: each ball joint of bar ij (both ends, each with this compliance),
-  along the bar (in series with it).
+  along the bar (in series with it);
+* ``central_EI``, ``central_GJ`` (2,) N.m^2: bending and torsion of the central bar's segment
+  D-C_k, a cantilever clamped at D loaded at C_k by lateral bar k (and the joint torque t_k);
+* ``lateral_EI``, ``lateral_GJ`` (4,) N.m^2: the same for lateral bar k's arm C_k-B_i (leg i),
+  clamped at C_k, loaded at B_i by bars i1, i2 (the cross-piece B_i1-B_i2 rigid);
+* ``shaft_tilt`` (4,) rad/(N.m): actuator i's shaft and bearings, forearm i's root turning about
+  the two axes normal to u_i through P_i under the bars' couple about P_i;
+* ``base_translation`` (4,) m/N, ``base_rotation`` (4,) rad/(N.m): actuator i's mount on the base,
+  an isotropic 6-D spring at P_i under the full wrench of leg i.
+
+Beams (:func:`beam_compliance`): Euler-Bernoulli, isotropic bending, axial and shear compliance
+neglected; tip compliance L^3/(3EI), L^2/(2EI), L/(EI), L/(GJ).
 
 The data sit in the URDF next to their element, like the springs of eq. 30 (:mod:`h4pin.urdf`):
 ``<h4_revolute radial="..." axial="..." tilt="..."/>`` inside each lateral revolute ``<joint>``,
-``<h4_ball radial="..."/>`` inside each bar ``<link>``; a missing element or attribute is off.
-:func:`h4pin.load` reads them into :attr:`h4pin.H4.elements`.
+``<h4_ball radial="..."/>`` inside each bar ``<link>``, ``<h4_plate_bar EI_n= GJ_n=/>`` inside the
+central bar's ``<link>`` (n = k of segment D-C_k) and each lateral bar's ``<link>`` (n = i of arm
+C_k-B_i), ``<h4_actuator kc= shaft_tilt=/>`` and ``<h4_base translation= rotation=/>`` inside each
+actuated ``<joint>``; a missing element or attribute is off. :func:`h4pin.load` reads them into
+:attr:`h4pin.H4.elements`.
 
 Unit-load method on a statics route: the equilibrium of the central bar and the two lateral bars
 under ``Gamma_ext = [F, T, t1, t2]`` (:func:`plate_loads`) gives each element's load per unit
-load ``g_s`` (the joint reactions, the bar tensions), and ``C_extra = sum_s c_s g_s g_s^T``
-(:func:`element_terms`). With every element off, :func:`compliance_with_elements` returns eq. 30
-unchanged. The finite-difference route of :class:`DeformedElementsH4` (the plate solved with the
-joints displaced or tilted) checks each term.
+load (the joint reactions, the bar tensions, the wrenches at the beams' tips and on the actuator
+mounts, :func:`element_loads`), and ``C_extra = sum_s c_s g_s g_s^T`` over scalar springs,
+``sum_b W_b^T C_b W_b`` over beams and 6-D mounts (:func:`element_terms`). With every element
+off, :func:`compliance_with_elements` returns eq. 30 unchanged. The finite-difference route of
+:class:`DeformedElementsH4` (the plate solved with joint frames, beam tips and forearm roots moved
+and turned) checks each term.
 """
 
 from __future__ import annotations
