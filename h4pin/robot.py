@@ -38,7 +38,7 @@ from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, 
 from h4pin.geometry import PlateState, Points
 from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
 from h4pin.params import PER_LEG, SPRINGS, VARIANTS, H4Params
-from h4pin.urdf import URDFExtras, decode, parse, to_urdf
+from h4pin.urdf import SPRING_ELEMENTS, URDFExtras, decode, parse, to_urdf
 
 #: Condition number of the passive closure Jacobian above which :meth:`H4.passive_map` refuses.
 SINGULAR_COND = 1e10
@@ -386,6 +386,16 @@ class H4:
                         what = {central_link: "central bar"}.get(owner, "lateral bar" if owner in allowed else "link")
                         raise self._err(f"{what} link '{owner}': <h4_plate_bar {field[6:]}> names no beam of it "
                                         f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
+        # the other elements only where they belong
+        places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
+                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint")}
+        source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
+        for owner, data in extras.springs.items():
+            for field in data:
+                if field in ELEMENTS and field not in RIGIDITIES and owner not in places[field.split("_")[0]][0]:
+                    tag, attr = source[field]
+                    raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
+                                    f"{places[field.split('_')[0]][1]} (the element it describes)")
         owners, values = {}, {}
         for name in ELEMENTS:
             rigid = np.inf if name in RIGIDITIES else 0.0

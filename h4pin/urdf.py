@@ -425,6 +425,11 @@ def parse(text: str, where: str = "URDF") -> URDFExtras:
         closures.append(Closure(name, *sides))
     springs: dict[str, dict[str, float]] = {}
     for tag, (kind, fields) in SPRING_ELEMENTS.items():
+        other = "link" if kind == "joint" else "joint"
+        for elem in root.findall(other):
+            if elem.find(tag) is not None:
+                raise MalformedURDFError(f"{where}: <{tag}> sits in {other} '{elem.get('name')}'; it belongs inside "
+                                         f"a <{kind}>")
         for elem in root.findall(kind):
             found = elem.findall(tag)
             if not found:

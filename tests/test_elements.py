@@ -169,6 +169,12 @@ def load_text(text: str):
     ('shaft_tilt="4e-05"', 'shaft_tilt="-4e-05"', "actuated joint 'actuator_4' (<h4_actuator shaft_tilt>)"),
     ('rotation="3e-05"', 'rotation="nan"', "<h4_base rotation> of joint 'actuator_2'"),
     ('translation="3e-08"', 'translation="-3e-08"', "actuated joint 'actuator_4' (<h4_base translation>)"),
+    ('<h4_revolute radial="1e-08"', '<h4_base rotation="1e-5"/><h4_revolute radial="1e-08"',
+     "<h4_base rotation> sits in 'lateral_1', which is not an actuated joint"),
+    ('<h4_ball radial="4.5e-08"/>', '<h4_revolute tilt="1e-5"/>',
+     "<h4_revolute> sits in link 'bar_42'; it belongs inside a <joint>"),
+    ('<h4_plate_bar EI_1="225.0"', '<h4_ball radial="1e-8"/><h4_plate_bar EI_1="225.0"',
+     "<h4_ball radial> sits in 'central_bar', which is not a bar link"),
 ])
 def test_non_physical_element_in_the_urdf_names_it(old, new, where):
     from h4pin import H4Params, MalformedURDFError
