@@ -33,12 +33,12 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import _fast, geometry
-from h4pin.elements import COUNTS, ELEMENTS, Elements, check_elements
+from h4pin.elements import ELEMENTS, RIGIDITIES, Elements, check_elements
 from h4pin.errors import MalformedURDFError, ParameterError, SingularPoseError, URDFNotFoundError
 from h4pin.geometry import PlateState, Points
 from h4pin.model import BAR_CLEARANCE, POINT_TOL, H4Geometry, check_springs, params_from_geometry
 from h4pin.params import PER_LEG, SPRINGS, VARIANTS, H4Params
-from h4pin.urdf import URDFExtras, decode, parse, to_urdf
+from h4pin.urdf import SPRING_ELEMENTS, URDFExtras, decode, parse, to_urdf
 
 #: Condition number of the passive closure Jacobian above which :meth:`H4.passive_map` refuses.
 SINGULAR_COND = 1e10
@@ -280,7 +280,7 @@ class H4:
 
         self.actuated_joint_names = tuple(m.names[j] for j in act)
         data = self._springs(extras, springs, act, bar_links)
-        self._element_data = self._elements(extras, lateral, bar_links)
+        self._element_data = self._elements(extras, lateral, bar_links, act, central, lat_arr[0::2])
         lo, hi = m.lowerPositionLimit, m.upperPositionLimit
         q_idx = [m.joints[j].idx_q for j in act]
         lat_idx = [m.joints[j].idx_q for j in lateral]
@@ -366,24 +366,66 @@ class H4:
                                     "(finite and > 0 needed)") from None
             raise
 
-    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str]) -> Elements:
+    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str], act: list[int],
+                  central: int, leg_lat: np.ndarray) -> Elements:
         """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
-        links); a missing element or attribute is off (0)."""
+        links, <h4_plate_bar> in the plate links, shaft_tilt of <h4_actuator> and <h4_base> in the
+        actuated joints); a missing element or attribute is off."""
         joints = [self.model.names[j] for j in lateral]
+        actuated = [self.model.names[j] for j in act]
+        central_link = extras.joint_child.get(self.model.names[central], "")
+        lateral_links = [extras.joint_child.get(name, "") for name in joints]
+        # <h4_plate_bar> EI_n/GJ_n: n is C_n on the central bar, leg n (B_n) on a lateral bar.
+        allowed = {central_link: {1, 2}} | {link: {int(i) + 1 for i in np.flatnonzero(leg_lat == k)}
+                                            for k, link in enumerate(lateral_links)}
+        for owner, data in extras.springs.items():
+            for field in data:
+                if field.startswith("plate_"):
+                    n = int(field[-1])
+                    if n not in allowed.get(owner, set()):
+                        what = {central_link: "central bar"}.get(owner, "lateral bar" if owner in allowed else "link")
+                        raise self._err(f"{what} link '{owner}': <h4_plate_bar {field[6:]}> names no beam of it "
+                                        f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
+        # the other elements only where they belong
+        places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
+                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint")}
+        source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
+        for owner, data in extras.springs.items():
+            for field in data:
+                if field in ELEMENTS and field not in RIGIDITIES and owner not in places[field.split("_")[0]][0]:
+                    tag, attr = source[field]
+                    raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
+                                    f"{places[field.split('_')[0]][1]} (the element it describes)")
         owners, values = {}, {}
         for name in ELEMENTS:
-            per_joint = COUNTS[name] == 2
-            keys = joints if per_joint else bar_links
-            tag, attr = ("h4_revolute", name.split("_")[1]) if per_joint else ("h4_ball", "radial")
-            owners[name] = [f"{'lateral joint' if per_joint else 'bar link'} '{key}' (<{tag} {attr}>)" for key in keys]
-            values[name] = [extras.springs.get(key, {}).get(name, 0.0) for key in keys]
+            rigid = np.inf if name in RIGIDITIES else 0.0
+            if name.startswith("revolute"):
+                attr = name.split("_")[1]
+                keys = [(j, name) for j in joints]
+                owners[name] = [f"lateral joint '{j}' (<h4_revolute {attr}>)" for j in joints]
+            elif name == "ball_radial":
+                keys = [(b, name) for b in bar_links]
+                owners[name] = [f"bar link '{b}' (<h4_ball radial>)" for b in bar_links]
+            elif name in RIGIDITIES:
+                q = name.split("_")[1]
+                if name.startswith("central"):
+                    keys = [(central_link, f"plate_{q}_{k + 1}") for k in range(2)]
+                else:
+                    keys = [(lateral_links[leg_lat[i]], f"plate_{q}_{i + 1}") for i in range(4)]
+                owners[name] = [f"{name.split('_')[0]} bar link '{link}' (<h4_plate_bar {f[6:]}>)" for link, f in keys]
+            else:
+                tag, attr = ("h4_actuator", "shaft_tilt") if name == "shaft_tilt" else ("h4_base", name.split("_")[1])
+                keys = [(j, name) for j in actuated]
+                owners[name] = [f"actuated joint '{j}' (<{tag} {attr}>)" for j in actuated]
+            values[name] = [extras.springs.get(key, {}).get(field, rigid) for key, field in keys]
         return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
 
     # ----------------------------------------------------------------- geometry
     @property
     def elements(self) -> Elements:
         """The data of the elements eq. 30 neglects (:class:`h4pin.elements.Elements`), read from
-        the URDF's ``<h4_revolute>`` and ``<h4_ball>``; all off when the URDF has none."""
+        the URDF's ``<h4_revolute>``, ``<h4_ball>``, ``<h4_plate_bar>``, ``<h4_actuator
+        shaft_tilt>`` and ``<h4_base>``; all off when the URDF has none."""
         return self._element_data
 
     @property

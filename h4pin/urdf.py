@@ -14,7 +14,10 @@ ignore them; h4pin reads them with an XML parser, :func:`parse`):
   data along, and a tree cannot disagree with a table kept elsewhere;
 * optional data of the elements eq. 30 neglects (:mod:`h4pin.elements`, off when absent):
   ``<h4_revolute radial= axial= tilt=/>`` inside each lateral revolute ``<joint>``,
-  ``<h4_ball radial=/>`` inside each bar ``<link>`` (both ball joints of the bar);
+  ``<h4_ball radial=/>`` inside each bar ``<link>`` (both ball joints of the bar),
+  ``<h4_plate_bar EI_n= GJ_n=/>`` inside the central bar's ``<link>`` (segment D-C_n) and each
+  lateral bar's ``<link>`` (arm C_k-B_n of leg n), ``shaft_tilt=`` on ``<h4_actuator>`` and
+  ``<h4_base translation= rotation=/>`` inside each actuated ``<joint>``;
 * ``<h4pin format="2" units="SI"/>``: the version of these conventions and the units.
 
 Geometry is never read from a side element: :func:`h4pin.load` takes every length and position
@@ -41,7 +44,7 @@ from __future__ import annotations
 import dataclasses
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -183,6 +186,16 @@ def _frame(name: str, parent: str, xyz: np.ndarray) -> str:
     return f'  <link name="{name}"/>\n' + _joint(f"{name}_frame", "fixed", parent, name, xyz)
 
 
+def _plate_bar(elements: Elements | None, family: str, indices: Any) -> str:
+    """``<h4_plate_bar EI_n= GJ_n=/>`` of the beams ``indices`` (0-based; n = index + 1) of a plate
+    link that are not rigid; empty when none is."""
+    if elements is None:
+        return ""
+    attrs = [f'{q}_{n + 1}="{_num(getattr(elements, f"{family}_{q}")[n])}"' for n in indices for q in ("EI", "GJ")
+             if np.isfinite(getattr(elements, f"{family}_{q}")[n])]
+    return f"<h4_plate_bar {' '.join(attrs)}/>" if attrs else ""
+
+
 def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None) -> str:
     """URDF text of the H4 described by ``params`` (see the module docstring for its layout).
 
@@ -214,8 +227,13 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
         spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
                   f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"/>')
         parts.append(forearm.xml(n["forearm"], "forearm", spring))
+        actuator = f'<h4_actuator kc="{_num(p.kc[i])}"/>'
+        if elements is not None:
+            actuator = (f'<h4_actuator kc="{_num(p.kc[i])}" shaft_tilt="{_num(elements.shaft_tilt[i])}"/>\n    '
+                        f'<h4_base translation="{_num(elements.base_translation[i])}" '
+                        f'rotation="{_num(elements.base_rotation[i])}"/>')
         parts.append(_joint(n["joint"], "revolute", "base_link", n["forearm"], p.P[:, i], u[i], ACTUATOR_LIMITS,
-                            f'<h4_actuator kc="{_num(p.kc[i])}"/>'))
+                            actuator))
         parts.append(_frame(n["A"], n["forearm"], r * a[i]))
         for j, s in enumerate(signs):
             b = bar_names(i + 1, j + 1)
@@ -239,7 +257,7 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
     central.rod(p.DC[:, 0], p.DC[:, 1], PLATE_RADIUS, RHO_ALUMINIUM)
     central.rod(np.zeros(3), p.DC.mean(axis=1), PLATE_RADIUS, RHO_ALUMINIUM)
     central.ball(np.zeros(3), 1.5 * PLATE_RADIUS)
-    parts.append(central.xml("central_bar", "plate"))
+    parts.append(central.xml("central_bar", "plate", _plate_bar(elements, "central", range(2))))
     parts.append(_joint("plate", "floating", "base_link", "central_bar", np.zeros(3)))
     parts.append(_frame("D", "central_bar", np.zeros(3)))
     bij = p.plate_ball_centres()
@@ -251,7 +269,7 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
             lateral.rod(bij[i, 0] - p.DC[:, k], bij[i, 1] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
             for j in range(2):
                 lateral.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
-        parts.append(lateral.xml(n["link"], "plate"))
+        parts.append(lateral.xml(n["link"], "plate", _plate_bar(elements, "lateral", np.flatnonzero(LEG_LATERAL == k))))
         joint_data = "" if elements is None else (
             f'<h4_revolute radial="{_num(elements.revolute_radial[k])}" axial="{_num(elements.revolute_axial[k])}" '
             f'tilt="{_num(elements.revolute_tilt[k])}"/>')
@@ -298,7 +316,11 @@ SPRING_ELEMENTS = {
     "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
     "h4_revolute": ("joint", {"radial": "revolute_radial", "axial": "revolute_axial", "tilt": "revolute_tilt"}),
     "h4_ball": ("link", {"radial": "ball_radial"}),
+    "h4_base": ("joint", {"translation": "base_translation", "rotation": "base_rotation"}),
+    "h4_plate_bar": ("link", {f"{q}_{n}": f"plate_{q}_{n}" for q in ("EI", "GJ") for n in range(1, 5)}),
 }
+#: Optional attribute of ``<h4_actuator>`` (the shaft's tilt compliance, :mod:`h4pin.elements`).
+SPRING_ELEMENTS["h4_actuator"][1]["shaft_tilt"] = "shaft_tilt"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -403,6 +425,11 @@ def parse(text: str, where: str = "URDF") -> URDFExtras:
         closures.append(Closure(name, *sides))
     springs: dict[str, dict[str, float]] = {}
     for tag, (kind, fields) in SPRING_ELEMENTS.items():
+        other = "link" if kind == "joint" else "joint"
+        for elem in root.findall(other):
+            if elem.find(tag) is not None:
+                raise MalformedURDFError(f"{where}: <{tag}> sits in {other} '{elem.get('name')}'; it belongs inside "
+                                         f"a <{kind}>")
         for elem in root.findall(kind):
             found = elem.findall(tag)
             if not found:

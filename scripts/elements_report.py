@@ -2,12 +2,14 @@
 # SPDX-License-Identifier: Apache-2.0
 """Term-by-term report of Table II with the elements eq. 30 neglects (h4pin.elements).
 
-At q_i = 45 deg, with illustrative element compliances (orders of magnitude of bearings and ball
-joints, not prototype data; the same value for every joint of a kind), or with the elements
-written in a URDF (``--urdf``, ``<h4_revolute>`` and ``<h4_ball>``, see h4pin.elements): each
-term's xx, yy, zz, xz in um/N and its share; each element's shape against the two shapes of
-eq. 30 (docs/gap.md); and the element compliance (every element of that kind) that would add
-1 um/N to xx (each term is linear in its compliance).
+At q_i = 45 deg, with illustrative element data (orders of magnitude of bearings, ball joints,
+the URDF's 8 mm aluminium plate rods, actuator shafts and motor mounts, not prototype data; the
+same value for every element of a kind; see h4pin.elements.ILLUSTRATIVE), or with the elements
+written in a URDF (``--urdf``: ``<h4_revolute>``, ``<h4_ball>``, ``<h4_plate_bar>``,
+``<h4_actuator shaft_tilt>``, ``<h4_base>``, see h4pin.elements): each term's xx, yy, zz, xz in
+um/N and its share; each element's shape against the two shapes of eq. 30 (docs/gap.md); and the
+element compliance (or rigidity EI, GJ) of every element of that kind that would make its term's
+xx 1 um/N (each term is linear in its compliance, inversely so in a rigidity).
 
     python scripts/elements_report.py [--urdf my_h4.urdf]
 """
@@ -24,12 +26,14 @@ from h4pin import gap
 from h4pin.table2 import centre_pose
 
 US = 1e6
-UNITS = {"revolute_radial": "m/N", "revolute_axial": "m/N", "revolute_tilt": "rad/(N.m)", "ball_radial": "m/N"}
+UNITS = el.UNITS
 STIFFNESS = {"m/N": "N/m", "rad/(N.m)": "N.m/rad"}
 
 
 def _values(v: np.ndarray) -> str:
-    return f"{v[0]:.0e}" if np.ptp(v) == 0 else "[" + " ".join(f"{x:.1e}" for x in v) + "]"
+    if np.all(v == v[0]):
+        return f"{v[0]:.3g}"
+    return "[" + " ".join(f"{x:.3g}" for x in v) + "]"
 
 
 def main() -> None:
@@ -52,18 +56,24 @@ def main() -> None:
     print(f"{'total':<18}" + "".join(f"{x * US:9.3f}" for x in total))
     terms = el.compliance_with_elements(h4, pose, elements).terms
     base = {"control": terms["control"][:3, :3], "torsion": terms["torsion"][:3, :3]}
-    print("\nElement shape vs the two shapes of eq. 30 (axial, tilt), and the compliance adding 1 um/N to xx:")
+    print("\nElement shape vs the two shapes of eq. 30 (axial, tilt), and the compliance (rigidity EI, GJ) of every "
+          "element of the kind for which its term alone has xx = 1 um/N:")
     for name in el.ELEMENTS:
         if name not in terms:
             print(f"  {name:<16} off")
             continue
         coef, res = gap.in_span(base | {name: terms[name][:3, :3]}, name, ("control", "torsion"))
-        c = float(np.mean(getattr(elements, name)))  # a common factor on every element of the kind
+        values = getattr(elements, name)
+        c = float(np.mean(values[np.isfinite(values)]))  # a common factor on every element of the kind
         xx = entries[name][0]
         unit = UNITS[name]
-        need = (f"{c * 1e-6 / xx:.2e} {unit} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[unit]})"
-                if abs(xx) > 1e-9 * abs(total[0]) else "none: no xx at this pose")
-        kind = "inside the two-shape cone" if res < 1e-6 and np.all(coef >= 0) else (
+        if abs(xx) <= 1e-9 * abs(total[0]):
+            need = "none: no xx at this pose"
+        elif name in el.RIGIDITIES:
+            need = f"{c * xx / 1e-6:.2e} {unit}"
+        else:
+            need = f"{c * 1e-6 / xx:.2e} {unit} (stiffness {xx / (c * 1e-6):.2e} {STIFFNESS[unit]})"
+        kind = "inside the two-shape cone" if res < 1e-6 and np.all(coef >= -1e-9 * np.abs(coef).max()) else (
             "in their plane, outside the cone" if res < 1e-6 else f"outside their plane (residual {res:.2f})")
         print(f"  {name:<16} {kind:<36} {need}")
 

@@ -96,7 +96,10 @@ def test_term_entries_sum_to_the_table(proto, centre):
 
 
 PER_ELEMENT = el.Elements(revolute_radial=[1e-8, 3e-8], revolute_axial=[2e-8, 0.5e-8], revolute_tilt=[5e-5, 2e-5],
-                          ball_radial=np.linspace(1e-8, 4.5e-8, 8))
+                          ball_radial=np.linspace(1e-8, 4.5e-8, 8), central_EI=[225.0, 400.0], central_GJ=[167.0, 90.0],
+                          lateral_EI=[200.0, 250.0, 300.0, 350.0], lateral_GJ=[150.0, np.inf, 120.0, 180.0],
+                          shaft_tilt=[1e-5, 2e-5, 3e-5, 4e-5], base_translation=[1e-8, 2e-8, 0.0, 3e-8],
+                          base_rotation=[1e-5, 3e-5, 2e-5, 4e-5])
 
 
 def test_per_element_values_on_a_toleranced_robot_with_tilted_joint_axes():
@@ -129,6 +132,8 @@ def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses)
     assert proto.elements.off
     text = to_urdf(H4Params(), "h4_with_elements", elements=PER_ELEMENT)
     assert text.count("<h4_revolute ") == 2 and text.count("<h4_ball ") == 8
+    assert text.count("<h4_plate_bar ") == 3 and text.count("<h4_base ") == 4 and text.count(" shaft_tilt=") == 4
+    assert 'GJ_2="' not in text.split('<link name="lateral_bar_1"')[1].split("</link>")[0]  # rigid: not written
     robot = load_text(text)
     assert robot.elements.allclose(PER_ELEMENT)
     x = poses[5]
@@ -142,6 +147,7 @@ def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses)
     one = load_text(hand).elements
     np.testing.assert_array_equal(one.revolute_tilt, [3e-5, 0.0])
     assert not np.any(one.revolute_radial) and not np.any(one.ball_radial)
+    assert np.all(np.isinf(one.central_EI)) and not np.any(one.shaft_tilt) and one.on("revolute_tilt")
     assert load(H4Params()).elements.off
 
 
@@ -153,9 +159,22 @@ def load_text(text: str):
 
 @pytest.mark.parametrize(("old", "new", "where"), [
     ('<h4_ball radial="4.5e-08"/>', '<h4_ball radial="-4.5e-08"/>', "bar link 'bar_42' (<h4_ball radial>)"),
-    ('tilt="2e-05"', 'tilt="nan"', "<h4_revolute tilt> of joint 'lateral_2'"),
+    (' tilt="2e-05"', ' tilt="nan"', "<h4_revolute tilt> of joint 'lateral_2'"),
     ('tilt="5e-05"', 'tilt="-5e-05"', "lateral joint 'lateral_1' (<h4_revolute tilt>)"),
     ('axial="2e-08"', 'axial="stiff"', "<h4_revolute axial> of joint 'lateral_1'"),
+    ('EI_2="400.0"', 'EI_2="0"', "central bar link 'central_bar' (<h4_plate_bar EI_2>): central_EI"),
+    ('EI_2="400.0"', 'EI_3="400.0"', "central bar link 'central_bar': <h4_plate_bar EI_3> names no beam"),
+    ('GJ_3="120.0"', 'GJ_3="-120.0"', "lateral bar link 'lateral_bar_2' (<h4_plate_bar GJ_3>): lateral_GJ"),
+    ('EI_4="350.0"', 'EI_1="350.0"', "lateral bar link 'lateral_bar_2': <h4_plate_bar EI_1> names no beam"),
+    ('shaft_tilt="4e-05"', 'shaft_tilt="-4e-05"', "actuated joint 'actuator_4' (<h4_actuator shaft_tilt>)"),
+    ('rotation="3e-05"', 'rotation="nan"', "<h4_base rotation> of joint 'actuator_2'"),
+    ('translation="3e-08"', 'translation="-3e-08"', "actuated joint 'actuator_4' (<h4_base translation>)"),
+    ('<h4_revolute radial="1e-08"', '<h4_base rotation="1e-5"/><h4_revolute radial="1e-08"',
+     "<h4_base rotation> sits in 'lateral_1', which is not an actuated joint"),
+    ('<h4_ball radial="4.5e-08"/>', '<h4_revolute tilt="1e-5"/>',
+     "<h4_revolute> sits in link 'bar_42'; it belongs inside a <joint>"),
+    ('<h4_plate_bar EI_1="225.0"', '<h4_ball radial="1e-8"/><h4_plate_bar EI_1="225.0"',
+     "<h4_ball radial> sits in 'central_bar', which is not a bar link"),
 ])
 def test_non_physical_element_in_the_urdf_names_it(old, new, where):
     from h4pin import H4Params, MalformedURDFError
@@ -165,3 +184,89 @@ def test_non_physical_element_in_the_urdf_names_it(old, new, where):
     assert old in text
     with pytest.raises(MalformedURDFError, match=re.escape(where)):
         load_text(text.replace(old, new))
+
+
+def test_beam_compliance_is_the_cantilever():
+    """Tip force normal to the beam: L^3/(3EI) along it, slope L^2/(2EI); tip couple: L/(EI)
+    bending, L/(GJ) torsion; an axial force does nothing; symmetric, positive semi-definite."""
+    e = np.array([0.6, 0.8, 0.0])
+    n = np.array([0.0, 0.0, 1.0])
+    length, ei, gj = 0.08, 225.0, 167.0
+    bend, tors = el.beam_compliance(e, length, ei, gj)
+    tip = bend @ np.r_[n, 0.0, 0.0, 0.0]
+    np.testing.assert_allclose(tip[:3], length**3 / (3 * ei) * n, atol=1e-20)
+    np.testing.assert_allclose(tip[3:], length**2 / (2 * ei) * np.cross(e, n), atol=1e-20)
+    np.testing.assert_allclose((bend @ np.r_[0.0, 0.0, 0.0, n])[:3], length**2 / (2 * ei) * np.cross(n, e), atol=1e-20)
+    np.testing.assert_allclose((bend @ np.r_[0.0, 0.0, 0.0, n])[3:], length / ei * n, atol=1e-20)
+    np.testing.assert_allclose((tors @ np.r_[0.0, 0.0, 0.0, e])[3:], length / gj * e, atol=1e-20)
+    np.testing.assert_allclose(bend @ np.r_[e, 0.0, 0.0, 0.0], 0.0, atol=1e-20)
+    for c in (bend, tors):
+        np.testing.assert_array_equal(c, c.T)
+        assert np.linalg.eigvalsh(c).min() > -1e-18
+    np.testing.assert_array_equal(el.beam_compliance(e, length, np.inf, np.inf)[0], 0.0)
+
+
+def test_leg_wrenches_on_the_base_balance_the_external_load(proto, poses):
+    """Sum over legs of the wrench on the base at P_i = the external wrench at D (the joint
+    torques t_k are internal to the plate); each central segment's tip wrench and each lateral
+    arm's tip wrench balance the rest of their body."""
+    x = poses[6]
+    g = proto.geometry
+    loads = el.element_loads(g, x)
+    pts = el.plate_loads(g, x)["points"]
+    base = loads["base"]
+    force = base[:, :3].sum(axis=0)
+    moment = sum(base[i, 3:] + np.cross(pts.P[i], base[i, :3], axis=0) for i in range(4))
+    want_m = np.zeros((3, 8))
+    want_m[:, :3] = el._skew(pts.D)
+    want_m[:, 3:6] = np.eye(3)
+    np.testing.assert_allclose(force, np.eye(3, 8), atol=1e-12)
+    np.testing.assert_allclose(moment, want_m, atol=1e-12)
+    # the central bar: external load at D + the loads on both segments' tips = 0
+    central = loads["central"]
+    f_sum = np.eye(3, 8) + central[:, :3].sum(axis=0)
+    m_sum = np.eye(3, 8, 3) + sum(central[k, 3:] + np.cross(pts.C[k] - pts.D, central[k, :3], axis=0)
+                                  for k in range(2))
+    np.testing.assert_allclose(f_sum, 0.0, atol=1e-12)
+    np.testing.assert_allclose(m_sum, 0.0, atol=1e-12)
+    # the shaft tilt carries the base couple's part normal to u_i
+    for i in range(4):
+        normal = el.normal_pair(g.u[i])
+        np.testing.assert_allclose(loads["shaft_tilt"][2 * i:2 * i + 2], normal.T @ base[i, 3:], atol=1e-15)
+
+
+@pytest.mark.parametrize("one", [el.Elements(central_EI=[np.inf, 300.0]), el.Elements(lateral_GJ=[80.0, np.inf, np.inf,
+                                 np.inf]), el.Elements(shaft_tilt=[0.0, 0.0, 3e-5, 0.0]),
+                                 el.Elements(base_translation=[0.0, 2e-8, 0.0, 0.0]), el.Elements(base_rotation=2e-5)])
+def test_one_new_element_on_alone(proto, poses, one):
+    """One element of one kind on: only its term, equal to finite differences; K stays symmetric
+    positive definite and equals the deformed route's total."""
+    x = poses[1]
+    ours = el.element_terms(proto.geometry, x, one)
+    fd = el.element_terms_fd(proto.geometry, x, one)
+    assert len(ours) == 1 and set(ours) == set(fd)
+    name = next(iter(ours))
+    assert rel(ours[name], fd[name]) < 1e-6, name
+    res = el.compliance_with_elements(proto, x, one)
+    assert rel(res.matrix, res.matrix.T) < 1e-13 and np.linalg.eigvalsh(res.matrix).min() > 0
+    total = sum(deformed.compliance_terms(proto.geometry, x).values()) + fd[name]
+    assert rel(res.matrix, total) < 1e-6
+
+
+@pytest.mark.parametrize(("field", "bad"), [("central_EI", 0.0), ("lateral_GJ", -5.0), ("central_GJ", np.nan),
+                                            ("shaft_tilt", np.inf), ("base_rotation", -1e-5),
+                                            ("base_translation", "soft")])
+def test_bad_new_element_values(field, bad):
+    with pytest.raises(ParameterError, match=field):
+        el.Elements(**{field: bad})
+    assert el.Elements(central_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0).off
+
+
+def test_new_elements_off_are_bitwise_eq_30(proto, poses):
+    """Rigid beams (inf) and zero compliances written explicitly: K is eq. 30's, bit for bit."""
+    off = el.Elements(central_EI=np.inf, central_GJ=np.inf, lateral_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0,
+                      base_translation=0.0, base_rotation=0.0)
+    assert off.off
+    for model in ("paper", "consistent"):
+        base = compliance(proto, poses[2], model)
+        np.testing.assert_array_equal(el.compliance_with_elements(proto, poses[2], off, model).matrix, base.matrix)
