@@ -67,7 +67,9 @@ def test_accepted_poses_near_a_singularity_are_accurate():
     sym = h4pin.load("symmetric")
     c = sym.forward_geometry(np.full(4, np.pi / 4))
     direction = np.array([1.0, 0.6, -0.3, 2.0]) * 1e-3
-    scales = np.logspace(0, -9, 28)
+    # Down to 10 nm from the centre: closer than that, the distance is below the accuracy of the
+    # centre itself (a singular forward geometry, ~1e-9 m) and cond stops growing.
+    scales = np.logspace(0, -5, 20)
     poses = c + scales[:, None] * direction
     res = compliance(sym, poses, "consistent", on_error="nan")
     assert np.all(np.diff(np.log(res.condition)) > 0)  # closer is worse
