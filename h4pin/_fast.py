@@ -215,3 +215,79 @@ def pinocchio_matrices(J, H, point_joint, point_local, v_plate, v_act, lat, P, u
             for c in range(8):
                 K[r, c] += f * Y[r, n] * Y[c, n]
     return K, cond, Jq, M1, pts
+
+
+@njit(cache=True, nogil=True)
+def configuration(q_out, q, D, R, omega, P, u, A0, lat, C0, b, v, e1, e2, p0, idx_act, idx_u, idx_ff, idx_lat,
+                  lat_sign, X0R, X0t, D0):  # pragma: no cover - compiled
+    """Fill the Pinocchio configuration ``q_out`` (nq, starting from the neutral one) of an
+    assembled state: actuators, the universal joints (:func:`universal_angles`), the plate's
+    free-flyer (its placement relative to the reference one, as x y z qx qy qz qw) and the
+    lateral revolutes."""
+    alpha, beta = universal_angles(q, D, R, omega, P, u, A0, lat, C0, b, v, e1, e2, p0)
+    for i in range(4):
+        q_out[idx_act[i]] = q[i]
+    for n in range(8):
+        q_out[idx_u[n, 0]] = alpha[n]
+        q_out[idx_u[n, 1]] = beta[n]
+    # World placement of the central bar: x -> R (x - D0) + D applied to its reference X0;
+    # the free-flyer's motion is X0^-1 * world.
+    Rw = R @ X0R
+    tw = R @ (X0t - D0) + D
+    Rm = X0R.T @ Rw
+    tm = X0R.T @ (tw - X0t)
+    tr = Rm[0, 0] + Rm[1, 1] + Rm[2, 2]
+    if tr > 0.0:
+        s = 0.5 / math.sqrt(tr + 1.0)
+        qw, qx, qy, qz = 0.25 / s, (Rm[2, 1] - Rm[1, 2]) * s, (Rm[0, 2] - Rm[2, 0]) * s, (Rm[1, 0] - Rm[0, 1]) * s
+    elif Rm[0, 0] > Rm[1, 1] and Rm[0, 0] > Rm[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + Rm[0, 0] - Rm[1, 1] - Rm[2, 2])
+        qw, qx, qy, qz = (Rm[2, 1] - Rm[1, 2]) / s, 0.25 * s, (Rm[0, 1] + Rm[1, 0]) / s, (Rm[0, 2] + Rm[2, 0]) / s
+    elif Rm[1, 1] > Rm[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + Rm[1, 1] - Rm[0, 0] - Rm[2, 2])
+        qw, qx, qy, qz = (Rm[0, 2] - Rm[2, 0]) / s, (Rm[0, 1] + Rm[1, 0]) / s, 0.25 * s, (Rm[1, 2] + Rm[2, 1]) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + Rm[2, 2] - Rm[0, 0] - Rm[1, 1])
+        qw, qx, qy, qz = (Rm[1, 0] - Rm[0, 1]) / s, (Rm[0, 2] + Rm[2, 0]) / s, (Rm[1, 2] + Rm[2, 1]) / s, 0.25 * s
+    if qw < 0.0:
+        qw, qx, qy, qz = -qw, -qx, -qy, -qz
+    q_out[idx_ff + 0], q_out[idx_ff + 1], q_out[idx_ff + 2] = tm[0], tm[1], tm[2]
+    q_out[idx_ff + 3], q_out[idx_ff + 4], q_out[idx_ff + 5], q_out[idx_ff + 6] = qx, qy, qz, qw
+    for k in range(2):
+        q_out[idx_lat[k]] = lat_sign[k] * omega[k]
+    return q_out
+
+
+def pack_configuration(P, u, A0, C0, b, v, e1, e2, p0, lat_sign, X0R, X0t, D0, lat, idx_act, idx_u, idx_ff,
+                       idx_lat) -> tuple[np.ndarray, np.ndarray]:
+    """The constants of :func:`configuration` packed into one float and one int array, so that a
+    call passes 7 arguments instead of 23 (numba's dispatch costs per argument)."""
+    floats = np.concatenate([np.ravel(a) for a in (P, u, A0, C0, b, v, e1, e2, p0, lat_sign, X0R, X0t, D0)])
+    ints = np.concatenate([np.ravel(lat), np.ravel(idx_act), np.ravel(idx_u), [idx_ff], np.ravel(idx_lat)])
+    return np.ascontiguousarray(floats, dtype=np.float64), np.ascontiguousarray(ints, dtype=np.int64)
+
+
+@njit(cache=True, nogil=True)
+def configuration_packed(q_out, q, D, R, omega, F, I):  # noqa: E741  # pragma: no cover - compiled
+    """:func:`configuration` with the constants of :func:`pack_configuration`."""
+    return configuration(q_out, q, D, R, omega, F[0:12].reshape(4, 3), F[12:24].reshape(4, 3),
+                         F[24:48].reshape(8, 3), I[0:8], F[48:54].reshape(2, 3), F[54:78].reshape(8, 3),
+                         F[78:84].reshape(2, 3), F[84:108].reshape(8, 3), F[108:132].reshape(8, 3),
+                         F[132:156].reshape(8, 3), I[8:12], I[12:28].reshape(8, 2), I[28], I[29:31], F[156:158],
+                         F[158:167].reshape(3, 3), F[167:170], F[170:173])
+
+
+def pack_matrices(point_joint, point_local, v_plate, v_act, lat, P, u, c_ctrl, c_bend, c_tors,
+                  c_tens) -> tuple[np.ndarray, np.ndarray]:
+    """The constants of :func:`pinocchio_matrices` packed into one float and one int array."""
+    floats = np.concatenate([np.ravel(a) for a in (point_local, P, u, c_ctrl, c_bend, c_tors, c_tens)])
+    ints = np.concatenate([np.ravel(a) for a in (point_joint, v_plate, v_act, lat)])
+    return np.ascontiguousarray(floats, dtype=np.float64), np.ascontiguousarray(ints, dtype=np.int64)
+
+
+@njit(cache=True, nogil=True)
+def pinocchio_matrices_packed(J, H, F, I, model):  # noqa: E741  # pragma: no cover - compiled
+    """:func:`pinocchio_matrices` with the constants of :func:`pack_matrices`."""
+    return pinocchio_matrices(J, H, I[0:19], F[0:57].reshape(19, 3), I[19:27], I[27:31], I[31:39],
+                              F[57:69].reshape(4, 3), F[69:81].reshape(4, 3), F[81:85], F[85:89], F[89:93], F[93:101],
+                              model)

@@ -307,7 +307,8 @@ class H4:
         self._p0 = np.array([p0 for *_, p0 in ujoint])
         self._central = central
         self._q_plate = m.joints[central].idx_q
-        self._X0 = d.oMi[central].copy()
+        self._X0R = np.ascontiguousarray(d.oMi[central].rotation)
+        self._X0t = d.oMi[central].translation.copy()
         self._D0 = pos["D"]
         self._fid_D = self.frames["D"]
         self._v_plate = np.r_[m.joints[central].idx_v + np.arange(6), [m.joints[j].idx_v for j in lateral]]
@@ -321,7 +322,12 @@ class H4:
         self._point_joint_index = np.array([self._point_joints.index(j) for j in parents])
         self._point_local = np.array([m.frames[f].placement.translation for f in self._point_frames])
         self._q_neutral = q0
-        self._compliances = self.geometry.compliances()
+        g, c = self.geometry, self.geometry.compliances()
+        self._pack_conf = _fast.pack_configuration(g.P, g.u, g.A0, g.C0, g.b, g.v, self._e1, self._e2, self._p0,
+                                                   self._lat_sign, self._X0R, self._X0t, self._D0, g.lat, self._q_act,
+                                                   self._q_u, self._q_plate, self._q_lat)
+        self._pack_mat = _fast.pack_matrices(self._point_joint_index, self._point_local, self._v_plate, self.v_act,
+                                             g.lat, g.P, g.u, c["control"], c["bending"], c["torsion"], c["tension"])
 
     def _springs(self, extras: URDFExtras, override: dict[str, Any], act: list[int],
                  bar_links: list[str]) -> dict[str, np.ndarray]:
@@ -488,21 +494,8 @@ class H4:
         universal joint is solved in closed form (two rotations about axes through A_ij that
         take the bar's end to the direction of B_ij; the branch closest to the reference).
         """
-        g = self.geometry
-        q_act = np.ascontiguousarray(state.q, dtype=float)
-        R = np.ascontiguousarray(state.R, dtype=float)
-        D = np.ascontiguousarray(state.D, dtype=float)
-        omega = np.ascontiguousarray(state.omega, dtype=float)
-        alpha, beta = _fast.universal_angles(q_act, D, R, omega, g.P, g.u, g.A0, g.lat, g.C0, g.b, g.v, self._e1,
-                                             self._e2, self._p0)
-        q = self._q_neutral.copy()
-        q[self._q_act] = q_act
-        q[self._q_u[:, 0]] = alpha
-        q[self._q_u[:, 1]] = beta
-        world = pin.SE3(R @ self._X0.rotation, R @ (self._X0.translation - self._D0) + D)
-        q[self._q_plate:self._q_plate + 7] = pin.SE3ToXYZQUAT(self._X0.inverse() * world)
-        q[self._q_lat] = self._lat_sign * omega
-        return q
+        q, D, R, omega = (np.ascontiguousarray(a, dtype=float) for a in state)
+        return _fast.configuration_packed(self._q_neutral.copy(), q, D, R, omega, *self._pack_conf)
 
     def kinematics(self, pose: np.ndarray) -> Kinematics:
         """Everything about one pose through Pinocchio (:class:`Kinematics`): the assembled
@@ -543,25 +536,25 @@ class H4:
                      A=aij.reshape(4, 2, 3).mean(axis=1), Aij=aij.reshape(4, 2, 3), v=v_world.T)
         return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
 
-    def pinocchio_compliance(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, float, np.ndarray]:
-        """K (8, 8) of eq. 30, the scaled condition number of M1 and J (4, 4) at one pose, through
-        Pinocchio: the assembled configuration, ``computeJointJacobians`` and the joint
-        placements; M1 (eq. 6) and M2 M3 (eq. 11) from Pinocchio's world-frame joint Jacobians
-        shifted to the B_ij and A_ij points (compiled arithmetic, :func:`h4pin._fast.pinocchio_matrices`).
+    def pinocchio_compliance(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, float, np.ndarray,
+                                                                                  np.ndarray]:
+        """K (8, 8) of eq. 30, the scaled condition number of M1, J (4, 4) and the actuator angles
+        (4,) at one pose, through Pinocchio: the assembled configuration, ``computeJointJacobians``
+        and the joint placements; M1 (eq. 6) and M2 M3 (eq. 11) from Pinocchio's world-frame joint
+        Jacobians shifted to the B_ij and A_ij points (compiled arithmetic,
+        :func:`h4pin._fast.pinocchio_matrices`).
 
         Raises:
             UnreachablePoseError (and subclasses): the robot cannot take the pose.
         """
-        q = self.configuration(pose)
+        st = self.state(pose)
+        q = self.assemble(st)
         m, d = self.model, self.data
         pin.computeJointJacobians(m, d, q)
         homog = np.array([d.oMi[j].homogeneous for j in self._point_joints])
-        c = self._compliances
-        K, cond, J, _, _ = _fast.pinocchio_matrices(d.J, homog, self._point_joint_index, self._point_local,
-                                                     self._v_plate, self.v_act, self.geometry.lat, self.geometry.P,
-                                                     self.geometry.u, c["control"], c["bending"], c["torsion"],
-                                                     c["tension"], 1 if model == "consistent" else 0)
-        return K, cond, J
+        K, cond, J, _, _ = _fast.pinocchio_matrices_packed(d.J, homog, *self._pack_mat,
+                                                            1 if model == "consistent" else 0)
+        return K, cond, J, st.q
 
     def closure_residuals(self, q: np.ndarray) -> np.ndarray:
         """Position errors of the 8 closures at configuration q, (8, 3) in m, from Pinocchio."""

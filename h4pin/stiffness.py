@@ -270,11 +270,10 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
                               cond, 0, None)
     if not terms and method == "pinocchio" and on_error == "raise" and np.shape(pose) == (4,):
         x = geometry.as_pose(pose).copy()
-        K, cond, _ = h4.pinocchio_compliance(x, model)  # raises the typed error of a pose it cannot take
+        K, cond, _, q = h4.pinocchio_compliance(x, model)  # raises the typed error of a pose it cannot take
         if not cond < SINGULAR_COND:
             raise SingularPoseError(f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a "
                                     "motion that no spring resists")
-        q = h4.state(x).q
         return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True).terms), x, q, model,
                           cond, 0, None)
     if not terms:
@@ -321,7 +320,7 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
         q[sel] = sol.state.q[ok]
         if method == "pinocchio" and not keep:
             for k in sel:
-                K, c, _ = h4.pinocchio_compliance(xb[k], model)
+                K, c, _, _ = h4.pinocchio_compliance(xb[k], model)
                 cond[k] = c
                 if c < SINGULAR_COND:
                     matrix[k] = K
