@@ -300,7 +300,7 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
         return _kernel_path(h4, x, xb, finite, single, model, on_error, keep)
     n = len(xb)
     status = np.full(n, INVALID, dtype=np.int8)
-    detail: list[str | None] = [f"pose #{k} is not finite: {xb[k]}" for k in range(n)]
+    detail: list[str | None] = [None] * n  # filled for the poses that fail (NaN poses: below)
     q = np.full((n, 4), np.nan)
     cond = np.full(n, np.nan)
     matrix = np.full((n, 8, 8), np.nan)
@@ -353,6 +353,8 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
             for t in TERMS:
                 out_terms[t][sel[regular]] = part[t]
     if on_error == "raise":
+        for k in np.flatnonzero(status == INVALID)[:1]:
+            detail[k] = f"pose #{k} is not finite: {xb[k]}"
         geometry.raise_for_status(status, detail, batch=not single)
     valid = status == OK
     if single:
