@@ -50,6 +50,7 @@ import pinocchio as pin
 from h4pin import geometry
 from h4pin.deformed import DeformedH4
 from h4pin.errors import ParameterError
+from h4pin.geometry import normal_pair, skew
 from h4pin.model import H4Geometry
 from h4pin.stiffness import Compliance, compliance
 
@@ -180,25 +181,6 @@ ILLUSTRATIVE = Elements(revolute_radial=1e-8, revolute_axial=1e-8, revolute_tilt
                         lateral_GJ=26e9 * 2 * _ROD_I, shaft_tilt=2e-5, base_translation=1e-8, base_rotation=1e-5)
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def normal_pair(axis: np.ndarray) -> np.ndarray:
-    """(3, 2): two orthonormal vectors normal to the unit ``axis``, as columns."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    e1 = np.cross(axis, helper)
-    e1 /= np.linalg.norm(e1)
-    return np.column_stack([e1, np.cross(axis, e1)])
-
-
-def _pose_points(g: H4Geometry, pose: np.ndarray) -> geometry.Points:
-    x = geometry.as_pose(pose)
-    sol = geometry.solve(g, x, check=False)
-    geometry.raise_for_status(sol.status, sol.detail, batch=False)
-    return geometry.points(g, sol.state)
-
-
 def plate_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     """Loads per unit ``Gamma_ext`` (8 columns) from the equilibrium of the three plate bodies.
 
@@ -209,7 +191,7 @@ def plate_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     directions A_ij -> B_ij}. Moments are taken about D; the joint carries no moment about its
     axis but the applied torque t_k.
     """
-    pts = _pose_points(g, pose)
+    pts = geometry.assembled_points(g, pose)
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     b = pts.Bij.reshape(8, 3) - pts.D
@@ -226,7 +208,7 @@ def plate_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
         r0 = 6 + 6 * k
         for sign, rows in ((-1.0, 0), (1.0, r0)):  # central bar gets minus the joint load
             a[rows:rows + 3, cf:cf + 3] += sign * np.eye(3)
-            a[rows + 3:rows + 6, cf:cf + 3] += sign * _skew(ck)
+            a[rows + 3:rows + 6, cf:cf + 3] += sign * skew(ck)
             a[rows + 3:rows + 6, cm:cm + 2] += sign * normal
         for n in np.flatnonzero(g.lat == k):
             a[r0:r0 + 3, n] = -w[n]
@@ -256,7 +238,7 @@ def beam_compliance(axis: np.ndarray, length: float, ei: float, gj: float) -> tu
     bend = np.zeros((6, 6))
     bend[:3, :3] = length**3 / 3.0 * f * perp
     bend[3:, 3:] = length * f * perp
-    bend[3:, :3] = length**2 / 2.0 * f * _skew(e)
+    bend[3:, :3] = length**2 / 2.0 * f * skew(e)
     bend[:3, 3:] = bend[3:, :3].T
     tors = np.zeros((6, 6))
     tors[3:, 3:] = length / gj * np.outer(e, e)
@@ -343,7 +325,7 @@ def element_terms(g: H4Geometry, pose: np.ndarray, elements: Elements) -> dict[s
     loads = element_loads(g, pose)
     comp = spring_compliances(elements)
     out = {}
-    pts = _pose_points(g, pose)
+    pts = geometry.assembled_points(g, pose)
     for name in ELEMENTS:
         if not elements.on(name):
             continue

@@ -124,6 +124,19 @@ def exp_so3(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
 
 
+def skew(v: np.ndarray) -> np.ndarray:
+    """The cross-product matrix [v]x (3, 3) of a vector v (3,): ``skew(v) @ w = v x w``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def normal_pair(axis: np.ndarray) -> np.ndarray:
+    """(3, 2): two orthonormal vectors normal to the unit ``axis``, as columns."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    return np.column_stack([e1, np.cross(axis, e1)])
+
+
 def rigid_state(pose: np.ndarray, q: np.ndarray) -> PlateState:
     """The state of a rigid pose: R = Rz(theta), omega_k = -theta (lateral bars translate)."""
     theta = pose[..., 3]
@@ -374,6 +387,14 @@ def raise_for_status(status: np.ndarray, detail: list[str | None], batch: bool) 
     if bad.size:
         k = int(bad[0])
         raise _ERRORS[int(flat[k])](detail[k] or STATUS_NAMES[int(flat[k])], k if batch else None)
+
+
+def assembled_points(g: H4Geometry, pose: np.ndarray) -> Points:
+    """The points of one pose assembled without the joint-limit and interference checks (the
+    validation routes work on any pose the legs reach); raises if a leg cannot reach."""
+    sol = solve(g, as_pose(pose), check=False)
+    raise_for_status(sol.status, sol.detail, batch=False)
+    return points(g, sol.state)
 
 
 def inverse_geometry(g: H4Geometry, pose: np.ndarray, *, on_error: str = "raise", check: bool = True) -> np.ndarray:

@@ -25,21 +25,10 @@ from h4pin.model import H4Geometry
 _Z = np.array([0.0, 0.0, 1.0])
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def _unit_bars(pts: geometry.Points) -> np.ndarray:
     """Unit vectors A_ij -> B_ij, (8, 3)."""
     w = (pts.Bij - pts.Aij).reshape(8, 3)
     return w / np.linalg.norm(w, axis=1, keepdims=True)
-
-
-def _pose_points(g: H4Geometry, pose: np.ndarray) -> geometry.Points:
-    x = geometry.as_pose(pose)
-    sol = geometry.solve(g, x, check=False)
-    geometry.raise_for_status(sol.status, sol.detail, batch=False)
-    return geometry.points(g, sol.state)
 
 
 def bar_forces(g: H4Geometry, pose: np.ndarray) -> np.ndarray:
@@ -48,7 +37,7 @@ def bar_forces(g: H4Geometry, pose: np.ndarray) -> np.ndarray:
     Solved from the equilibrium of the central bar and the two lateral bars (moments about the
     world origin). Bar ij (n = 2(i-1) + j-1), in tension f, pulls its plate end B_ij towards A_ij.
     """
-    return _bar_forces(g, _pose_points(g, pose))
+    return _bar_forces(g, geometry.assembled_points(g, pose))
 
 
 def _bar_forces(g: H4Geometry, pts: geometry.Points) -> np.ndarray:
@@ -60,15 +49,15 @@ def _bar_forces(g: H4Geometry, pts: geometry.Points) -> np.ndarray:
     rhs = np.zeros((18, 8))
     for k in range(2):
         vk = pts.v[k]
-        e_xy = np.linalg.svd(vk[None, :])[2][1:].T  # two unit vectors normal to the joint axis
+        e_xy = geometry.normal_pair(vk)
         col_f, col_m = 8 + 5 * k, 11 + 5 * k
         ck = pts.C[k]
         a[0:3, col_f:col_f + 3] = -np.eye(3)  # central: sum of forces
-        a[3:6, col_f:col_f + 3] = -_skew(ck)  # central: sum of moments about O
+        a[3:6, col_f:col_f + 3] = -geometry.skew(ck)  # central: sum of moments about O
         a[3:6, col_m:col_m + 2] = -e_xy
         rows = slice(6 + 6 * k, 12 + 6 * k)
         a[rows.start:rows.start + 3, col_f:col_f + 3] = np.eye(3)
-        a[rows.start + 3:rows.stop, col_f:col_f + 3] = _skew(ck)
+        a[rows.start + 3:rows.stop, col_f:col_f + 3] = geometry.skew(ck)
         a[rows.start + 3:rows.stop, col_m:col_m + 2] = e_xy
         for n in np.flatnonzero(g.lat == k):
             a[rows.start:rows.start + 3, n] = -w[n]  # bar pulls B towards A
@@ -78,7 +67,7 @@ def _bar_forces(g: H4Geometry, pts: geometry.Points) -> np.ndarray:
         rhs[3:6, 6 + k] = vk
     # External F, T at D on the central bar: F + ..., T + D x F + ... = 0.
     rhs[0:3, 0:3] = -np.eye(3)
-    rhs[3:6, 0:3] = -_skew(pts.D)
+    rhs[3:6, 0:3] = -geometry.skew(pts.D)
     rhs[3:6, 3:6] = -np.eye(3)
     return np.linalg.solve(a, rhs)[:8]
 
@@ -91,7 +80,7 @@ def spring_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     bending springs carry the moment of these forces about the actuator axis (u_i through P_i),
     the torsion spring their moment about the forearm axis (through A_i, along P_i -> A_i).
     """
-    pts = _pose_points(g, pose)
+    pts = geometry.assembled_points(g, pose)
     f = _bar_forces(g, pts)
     w = _unit_bars(pts)
     aij = pts.Aij.reshape(8, 3)

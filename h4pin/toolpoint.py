@@ -28,18 +28,6 @@ from h4pin.deformed import DeformedH4
 from h4pin.model import H4Geometry
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def _normal_pair(axis: np.ndarray) -> np.ndarray:
-    """(3, 2): two orthonormal vectors normal to the unit ``axis``, as columns."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    e1 = np.cross(axis, helper)
-    e1 /= np.linalg.norm(e1)
-    return np.column_stack([e1, np.cross(axis, e1)])
-
-
 def world_offset(pose: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """p - D (3,) in m for an offset o (3,) given in the central-bar frame: Rz(theta) o."""
     return geometry.rot_z(float(np.asarray(pose)[3])) @ np.asarray(offset, dtype=float)
@@ -47,9 +35,7 @@ def world_offset(pose: np.ndarray, offset: np.ndarray) -> np.ndarray:
 
 def _pose_points(g: H4Geometry, pose: np.ndarray) -> tuple[np.ndarray, geometry.Points]:
     x = geometry.as_pose(pose)
-    sol = geometry.solve(g, x, check=False)
-    geometry.raise_for_status(sol.status, sol.detail, batch=False)
-    return x, geometry.points(g, sol.state)
+    return x, geometry.assembled_points(g, x)
 
 
 def bar_forces_at(g: H4Geometry, pose: np.ndarray, load_at: np.ndarray) -> np.ndarray:
@@ -69,15 +55,15 @@ def bar_forces_at(g: H4Geometry, pose: np.ndarray, load_at: np.ndarray) -> np.nd
     for k in range(2):
         cf, cm = 8 + 5 * k, 11 + 5 * k
         ck = pts.C[k] - pts.D
-        normal = _normal_pair(pts.v[k])
+        normal = geometry.normal_pair(pts.v[k])
         # central bar: -F_k at C_k, -M_k
         a[0:3, cf:cf + 3] -= np.eye(3)
-        a[3:6, cf:cf + 3] -= _skew(ck)
+        a[3:6, cf:cf + 3] -= geometry.skew(ck)
         a[3:6, cm:cm + 2] -= normal
         # lateral bar k: +F_k at C_k, +M_k, and its bars
         r0 = 6 + 6 * k
         a[r0:r0 + 3, cf:cf + 3] += np.eye(3)
-        a[r0 + 3:r0 + 6, cf:cf + 3] += _skew(ck)
+        a[r0 + 3:r0 + 6, cf:cf + 3] += geometry.skew(ck)
         a[r0 + 3:r0 + 6, cm:cm + 2] += normal
         for n in np.flatnonzero(g.lat == k):
             a[r0:r0 + 3, n] = -w[n]
@@ -85,7 +71,7 @@ def bar_forces_at(g: H4Geometry, pose: np.ndarray, load_at: np.ndarray) -> np.nd
     arm = world_offset(x, load_at)
     rhs = np.zeros((18, 3))
     rhs[0:3] = -np.eye(3)  # F + (joint forces) = 0 on the central bar
-    rhs[3:6] = -_skew(arm)  # (p' - D) x F + ... = 0
+    rhs[3:6] = -geometry.skew(arm)  # (p' - D) x F + ... = 0
     return np.linalg.solve(a, rhs)[:8]
 
 

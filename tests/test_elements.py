@@ -12,6 +12,7 @@ import pytest
 
 from h4pin import ParameterError, deformed, statics
 from h4pin import elements as el
+from h4pin.geometry import skew
 from h4pin.stiffness import TERMS, compliance
 
 
@@ -218,7 +219,7 @@ def test_leg_wrenches_on_the_base_balance_the_external_load(proto, poses):
     force = base[:, :3].sum(axis=0)
     moment = sum(base[i, 3:] + np.cross(pts.P[i], base[i, :3], axis=0) for i in range(4))
     want_m = np.zeros((3, 8))
-    want_m[:, :3] = el._skew(pts.D)
+    want_m[:, :3] = skew(pts.D)
     want_m[:, 3:6] = np.eye(3)
     np.testing.assert_allclose(force, np.eye(3, 8), atol=1e-12)
     np.testing.assert_allclose(moment, want_m, atol=1e-12)
