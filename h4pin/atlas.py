@@ -60,11 +60,32 @@ def _axis(name: str, values: Any) -> np.ndarray:
     return a
 
 
-def _geometry(source: Any) -> tuple[kernel.Kernel, str]:
-    params = getattr(source, "params", None)  # an h4pin.H4
-    if params is not None:
-        return kernel.prepare(params), Path(str(getattr(source, "source", "H4"))).name
+def _geometry(source: Any) -> tuple[Any, str]:
+    """The kernel of ``source``, or the robot itself when the kernel does not apply (a robot
+    whose parallelograms are not exact goes through the numpy path, :func:`_numpy_chunks`)."""
+    g = getattr(source, "geometry", None)  # an h4pin.H4: its geometry read from the URDF
+    if g is not None:
+        name = Path(str(getattr(source, "source", "H4"))).name
+        return (kernel.prepare(g), name) if g.ideal else (source, name)
     return kernel.prepare(source), type(source).__name__
+
+
+def _numpy_chunks(h4: Any, chunks: Any, model: str) -> Any:
+    """``(start, result)`` like :func:`h4pin.kernel.iter_compliance`, from the numpy path."""
+    from h4pin import geometry
+    from h4pin.matrices import from_points
+    from h4pin.stiffness import compliance
+
+    start = 0
+    for x in chunks:
+        res = compliance(h4, x, model, on_error="nan", method="closed_form")
+        J = np.full((len(x), 4, 4), np.nan)
+        ok = np.flatnonzero(res.status == kernel.OK)
+        if ok.size:
+            state = geometry.solve(h4.geometry, x[ok], check=False).state
+            J[ok] = from_points(h4.geometry, geometry.points(h4.geometry, state)).J
+        yield start, kernel.KernelResult(res.matrix, res.q, res.condition, res.status.astype(np.int8), None, J)
+        start += len(x)
 
 
 def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
@@ -72,8 +93,9 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
     """The atlas over the grid ``theta x z x y x`` (1-D coordinates in m and rad).
 
     Args:
-        source: An :class:`h4pin.H4`, an :class:`h4pin.H4Params`, a kernel geometry object or a
-            :class:`h4pin.kernel.Kernel`.
+        source: An :class:`h4pin.H4` (any robot: the compiled kernel, or the numpy path for a
+            robot whose parallelograms are not exact), an :class:`h4pin.H4Params`, a kernel
+            geometry object or a :class:`h4pin.kernel.Kernel`.
         x, y, z, theta: Grid coordinates (scalars or 1-D), m and rad.
         model: ``"paper"`` or ``"consistent"`` (eq. 30; K_tt is the same in both).
         chunk: Poses per kernel call (memory stays at one chunk).
@@ -95,7 +117,9 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             yield np.stack([axes["x"][idx[3]], axes["y"][idx[2]], axes["z"][idx[1]], axes["theta"][idx[0]]], axis=1)
 
     with tqdm(total=n, desc="atlas", unit="pose", disable=not progress) as bar:
-        for start, res in kernel.iter_compliance(kern, chunks(), model, chunk=chunk, jacobian=True):
+        results = (kernel.iter_compliance(kern, chunks(), model, chunk=chunk, jacobian=True)
+                   if isinstance(kern, kernel.Kernel) else _numpy_chunks(kern, chunks(), model))
+        for start, res in results:
             m = len(res.status)
             sl = slice(start, start + m)
             status[sl] = res.status

@@ -120,3 +120,22 @@ def test_cli_writes_the_atlas(proto, tmp_path):
     got = atlas.open_atlas(tmp_path / "a.nc")
     want = atlas.atlas(proto, [-0.1, 0.0, 0.1], [0.0, 0.1], [-0.6], [0.2], progress=False)
     assert got.equals(want)
+
+
+def test_a_toleranced_robot_goes_through_the_numpy_path(grid):
+    """The kernel needs exact parallelograms; a toleranced robot's atlas comes from the numpy path
+    and equals h4pin.compliance and the statics route at its grid points."""
+    import h4pin
+    from h4pin import statics
+
+    tol = h4pin.load("toleranced")
+    small = {"x": grid["x"][2:6], "y": grid["y"][2:5], "z": grid["z"][1:], "theta": [0.0]}
+    res = atlas.atlas(tol, **small, model="consistent", progress=False).stack(p=("theta", "z", "y", "x"))
+    poses = np.stack([res.x.values, res.y.values, res.z.values, res.theta.values], axis=1)
+    ok = res.status.values == kernel.OK
+    assert ok.sum() >= 6
+    ref = compliance(tol, poses[ok], "consistent", method="closed_form")
+    lam = np.linalg.eigvalsh(ref.translational)
+    np.testing.assert_allclose(res.compliance_max.values[ok], lam[:, 2], rtol=1e-12)
+    k = statics.compliance_matrix(tol.geometry, poses[np.flatnonzero(ok)[0]])
+    assert abs(res.stiffness_z.values[ok][0] * k[2, 2] - 1.0) < 1e-9
