@@ -110,7 +110,7 @@ def peak_rss_mb() -> float:
 
 def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tuple[str, int], float], float]:
     """Seconds per pose of the kernel batch per (model, threads), and of one pose."""
-    kern = kernel.prepare(h4.params)
+    kern = kernel.prepare(h4.geometry)
     kernel.compliance_batch(kern, poses[:10])  # load (or compile) once
     times = {}
     for threads in (1, 2):
@@ -131,7 +131,7 @@ def big_stream(h4: h4pin.H4, n: int, chunk: int) -> tuple[float, float, float]:
     translational compliance m/N)."""
     rng = np.random.default_rng(1)
     centre = centre_pose(h4)
-    kern = kernel.prepare(h4.params)
+    kern = kernel.prepare(h4.geometry)
 
     def chunks():
         for start in range(0, n, chunk):
@@ -178,7 +178,7 @@ def main() -> None:
     agree = np.max(np.abs(ours - naive)) / np.max(np.abs(ours))
     if agree > 1e-10:
         raise SystemExit(f"naive eq. 30 and h4pin disagree: {agree:.1e} relative")
-    fast = kernel.compliance_batch(h4.params, poses, "paper")
+    fast = kernel.compliance_batch(h4.geometry, poses, "paper")
     ref = compliance(h4, poses, "paper", method="closed_form").matrix
     agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
     if agree_k > 1e-12:
