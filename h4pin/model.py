@@ -153,9 +153,11 @@ class H4Geometry:
                             b=self.b @ rot.T, v=self.v @ rot.T)
 
 
-def check_springs(springs: dict[str, Any], where: str) -> dict[str, np.ndarray]:
+def check_springs(springs: dict[str, Any], where: str,
+                  owners: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
     """Spring data per element as float arrays (scalars broadcast); refuses missing or
-    non-physical values with a :class:`MalformedURDFError` naming the element."""
+    non-physical values with a :class:`MalformedURDFError` naming the element (``owners[name][k]``
+    when given, e.g. "the bar link 'bar_11'"; else its leg or bar)."""
     out = {}
     for name in SPRINGS:
         n = 4 if name in PER_LEG else 8
@@ -171,9 +173,12 @@ def check_springs(springs: dict[str, Any], where: str) -> dict[str, np.ndarray]:
             bad |= value > 1.0
         if np.any(bad):
             k = int(np.argmax(bad))
-            element = f"actuator/forearm of leg {k + 1}" if n == 4 else f"bar {k // 2 + 1}{k % 2 + 1}"
+            if owners is not None:
+                element = owners[name][k]
+            else:
+                element = f"actuator/forearm of leg {k + 1}" if n == 4 else f"bar {k // 2 + 1}{k % 2 + 1}"
             limit = ", at most 1" if name == "forearm_stressed_fraction" else ""
-            raise MalformedURDFError(f"{where}: {element}: spring datum '{name}' = {value[k]!r} is not physical "
+            raise MalformedURDFError(f"{where}: {element}: spring datum '{name}' = {float(value[k])!r} is not physical "
                                      f"(must be finite and > 0{limit})")
         out[name] = value
     return out

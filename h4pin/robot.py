@@ -334,19 +334,19 @@ class H4:
         unknown = set(override) - set(SPRINGS)
         if unknown:
             raise ParameterError(f"springs: unknown field(s) {', '.join(sorted(unknown))}; known: {', '.join(SPRINGS)}")
+        joints = [self.model.names[j] for j in act]
+        forearms = [extras.joint_child.get(name, "") for name in joints]
         owners = {}
         for name in SPRINGS:
             if name == "kc":
-                owners[name] = [f"actuated joint '{self.model.names[j]}'" for j in act]
+                owners[name] = [f"the actuated joint '{j}'" for j in joints]
             elif name in PER_LEG:
-                owners[name] = [f"forearm link '{extras.joint_child.get(self.model.names[j], '?')}'" for j in act]
+                owners[name] = [f"the forearm link '{f or '?'}'" for f in forearms]
             else:
-                owners[name] = [f"bar link '{link}'" for link in bar_links]
-        keys = {"kc": [self.model.names[j] for j in act]}
-        forearms = [extras.joint_child.get(self.model.names[j], "") for j in act]
+                owners[name] = [f"the bar link '{link}'" for link in bar_links]
         out = {}
         for name in SPRINGS:
-            elements = keys["kc"] if name == "kc" else forearms if name in PER_LEG else bar_links
+            elements = joints if name == "kc" else forearms if name in PER_LEG else bar_links
             values = np.array([extras.springs.get(e, {}).get(name, np.nan) for e in elements])
             if name in override:
                 try:
@@ -358,19 +358,10 @@ class H4:
             if missing.size:
                 tag = {"kc": "h4_actuator"}.get(name, "h4_forearm" if name in PER_LEG else "h4_bar")
                 attr = "stressed_fraction" if name == "forearm_stressed_fraction" else name
-                raise self._err(f"spring datum '{attr}' of the {owners[name][missing[0]]} is missing "
+                raise self._err(f"spring datum '{attr}' of {owners[name][missing[0]]} is missing "
                                 f"(<{tag} {attr}=\"...\"/> inside it, or load(..., springs={{'{name}': ...}}))")
             out[name] = values
-        try:
-            return check_springs(out, self.source)
-        except MalformedURDFError as exc:
-            for name in SPRINGS:
-                if f"'{name}'" in str(exc):
-                    bad = out[name]
-                    k = int(np.argmax(~np.isfinite(bad) | (bad <= 0) | ((bad > 1) if "fraction" in name else False)))
-                    raise self._err(f"the {owners[name][k]}: spring datum '{name}' = {float(bad[k])!r} is not physical "
-                                    "(finite and > 0 needed)") from None
-            raise
+        return check_springs(out, self.source, owners)
 
     def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str], act: list[int],
                   central: int, leg_lat: np.ndarray) -> Elements:
