@@ -264,6 +264,16 @@ def _rank1(M, s, u, v):
             M[a, c] += sa * v[c]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _refuse(K, T, want_terms, Jo, want_jac):
+    """NaN outputs of a pose that gets no K (status not 0)."""
+    K[:, :] = np.nan
+    if want_terms:
+        T[:] = np.nan
+    if want_jac:
+        Jo[:] = np.nan
+
+
 @njit(cache=True, nogil=True)
 def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws):
     """One pose: fills K (8, 8), qo (4,), optionally T (4, 8, 8) and Jo (4, 4); returns
@@ -287,13 +297,7 @@ def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W,
         if not (rho > 0.0) or abs(rhs) > rho:
             for a in range(4):
                 qo[a] = nan
-            for a in range(8):
-                for c in range(8):
-                    K[a, c] = nan
-            if want_terms:
-                T[:] = nan
-            if want_jac:
-                Jo[:] = nan
+            _refuse(K, T, want_terms, Jo, want_jac)
             return nan, 1
         cd = rhs / rho
         sd = np.sqrt(max(1.0 - cd * cd, 0.0))
@@ -391,13 +395,7 @@ def _pose(px, py, pz, th, G, model, K, qo, T, want_terms, Jo, want_jac, A, B, W,
     if status == 0 and not (cond < SINGULAR_CONDITION):
         status = 4
     if status != 0:
-        for a in range(8):
-            for c in range(8):
-                K[a, c] = nan
-        if want_terms:
-            T[:] = nan
-        if want_jac:
-            Jo[:] = nan
+        _refuse(K, T, want_terms, Jo, want_jac)
         return cond, status
     # Columns of M1^-1 M2 M3 (eq. 11): Gc[:, i] = sum_j Y[:, n] g_n, g_n = w_n . (p_n x u_i).
     for i in range(4):
