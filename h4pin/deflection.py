@@ -25,6 +25,7 @@ from h4pin.stiffness import (
     condition_number,
     eq30_terms,
     matrices_at,
+    singular_message,
 )
 
 
@@ -47,8 +48,7 @@ def deflection(h4: H4, pose: np.ndarray, load: np.ndarray, model: str = "consist
     mats = matrices_at(h4, x)
     inv, cond = condition_number(mats)
     if not cond < SINGULAR_COND:
-        raise SingularPoseError(f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a "
-                                "motion that no spring resists")
+        raise SingularPoseError(singular_message(cond))
     comp = h4.geometry.compliances()
     dtp = sum(eq30_terms(inv, mats, comp, model).values()) @ g
     r = R_PAPER if model == "paper" else R_CONSISTENT

@@ -83,6 +83,12 @@ def condition_number(mats: Matrices) -> tuple[np.ndarray, np.ndarray]:
     return inv, np.where(np.isfinite(cond), cond, np.inf)
 
 
+def singular_message(cond: float) -> str:
+    """The message of a pose refused as singular (:data:`SINGULAR_COND`)."""
+    return (f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion that no spring "
+            "resists")
+
+
 def eq30_terms(inv: np.ndarray, mats: Matrices, comp: dict[str, np.ndarray], model: str) -> dict[str, np.ndarray]:
     """The four terms of eq. 30, each (..., 8, 8), SI, from M1^-1 and the matrices.
 
@@ -272,8 +278,7 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, on_error: str = "r
         x = geometry.as_pose(pose).copy()
         K, cond, _, q = h4.pinocchio_compliance(x, model)  # raises the typed error of a pose it cannot take
         if not cond < SINGULAR_COND:
-            raise SingularPoseError(f"M1 is singular (cond = {cond:.2e} >= {SINGULAR_COND:.0e}): the plate has a "
-                                    "motion that no spring resists")
+            raise SingularPoseError(singular_message(cond))
         return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True).terms), x, q, model,
                           cond, 0, None)
     if not terms:
@@ -326,8 +331,7 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
                     matrix[k] = K
                 else:
                     status[k] = SINGULAR
-                    detail[k] = (f"M1 is singular (cond = {c:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion "
-                                 "that no spring resists")
+                    detail[k] = singular_message(c)
             continue
         if method == "pinocchio":
             mats_list = [from_kinematics(h4.kinematics(xb[k])) for k in sel]
@@ -341,8 +345,7 @@ def _compliance(h4, pose: np.ndarray, model: str, on_error: str, method: str, ke
         regular = c < SINGULAR_COND
         for k, cc in zip(sel[~regular], c[~regular], strict=True):
             status[k] = SINGULAR
-            detail[k] = (f"M1 is singular (cond = {cc:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion that "
-                         "no spring resists")
+            detail[k] = singular_message(cc)
         if not np.any(regular):
             continue
         sub = Matrices(*(getattr(mats, f)[regular] if f not in ("M5", "R") else getattr(mats, f)
@@ -399,15 +402,14 @@ def _kernel_path(h4, x: np.ndarray, xb: np.ndarray, finite: np.ndarray, single: 
                     terms[name][idx] = res.terms[:, t]
     if on_error == "raise" and np.any(statuses != OK):
         k = int(np.argmax(statuses != OK))
+        details: list[str | None] = [None] * len(statuses)
         if statuses[k] == SINGULAR:
-            detail = (f"M1 is singular (cond = {conds[k]:.2e} >= {SINGULAR_COND:.0e}): the plate has a motion that "
-                      "no spring resists")
+            details[k] = singular_message(conds[k])
         elif statuses[k] == INVALID:
-            detail = f"pose #{k} is not finite: {xb[k]}"
+            details[k] = f"pose #{k} is not finite: {xb[k]}"
         else:
-            detail = geometry.solve(h4.geometry, xb[k]).detail[0]
-        geometry.raise_for_status(np.array([statuses[k]]), [detail], batch=False) if single else \
-            geometry.raise_for_status(statuses, [None] * k + [detail] + [None] * (len(statuses) - k - 1), batch=True)
+            details[k] = geometry.solve(h4.geometry, xb[k]).detail[0]
+        geometry.raise_for_status(statuses, details, batch=not single)
     valid = statuses == OK
     if single:
         return Compliance(matrix[0], None if terms is None else {t: v[0] for t, v in terms.items()}, x, qs[0], model,
