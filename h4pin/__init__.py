@@ -1,7 +1,17 @@
 # SPDX-License-Identifier: Apache-2.0
-"""h4pin: the H4 parallel robot on Pinocchio, and its stiffness after Company et al. (ICRA 2005)."""
+"""h4pin: the H4 parallel robot on Pinocchio, and its stiffness after Company et al. (ICRA 2005).
+
+Layers (``docs/architecture.md``): :mod:`h4pin.description` (params, URDF, geometry, elements,
+reading) -> :mod:`h4pin.robot` (``load``, the immutable :class:`H4`) and :mod:`h4pin.kinematics`
+(closed forms, Pinocchio) -> :mod:`h4pin.stiffness` (matrices, eq. 30: numpy reference and
+compiled core; elements; :func:`compliance`) -> :mod:`h4pin.studies` and :mod:`h4pin.io`;
+:mod:`h4pin.checks` holds the independent validation routes.
+"""
 
 from h4pin import _compat  # noqa: F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
+from h4pin.description.elements import Elements
+from h4pin.description.geometry import H4Geometry
+from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params
 from h4pin.errors import (
     ConvergenceError,
     H4Error,
@@ -15,40 +25,38 @@ from h4pin.errors import (
     UnreachablePoseError,
     URDFNotFoundError,
 )
-from h4pin.model import H4Geometry
-from h4pin.params import VARIANTS, H4Params, symmetric_params, toleranced_params
-from h4pin.robot import H4, Kinematics, load
-from h4pin.stiffness import Compliance, compliance
+from h4pin.kinematics.pinocchio import Kinematics
+from h4pin.robot import H4, load
+from h4pin.stiffness.api import Compliance, compliance
 
 __version__ = "0.1.0"
 
 # example_robot_data.load("h4") when example-robot-data-loaders is installed (no download).
-from h4pin import erd as _erd  # noqa: E402
+from h4pin.io import erd as _erd  # noqa: E402
 
 _erd.register()
 
 __all__ = [
     "H4",
+    "VARIANTS",
     "Compliance",
+    "ConvergenceError",
+    "Elements",
+    "H4Error",
     "H4Geometry",
+    "H4Params",
     "InterferenceError",
     "JointLimitError",
     "Kinematics",
-    "URDFNotFoundError",
-    "compliance",
-    "toleranced_params",
-    "VARIANTS",
-    "LoadError",
-    "ConvergenceError",
-    "H4Error",
-    "H4Params",
     "LoadError",
     "MalformedURDFError",
     "ParameterError",
     "PoseError",
     "SingularPoseError",
+    "URDFNotFoundError",
     "UnreachablePoseError",
     "compliance",
     "load",
     "symmetric_params",
+    "toleranced_params",
 ]

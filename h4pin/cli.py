@@ -103,7 +103,7 @@ def table2(
                                 "identified point, the paper's computed and measured tables"),
 ) -> None:
     """Table II of the paper: compliance at q_i = 45 deg beside the paper's computed and measured tables."""
-    from h4pin.table2 import report, report_fitted
+    from h4pin.studies.table2 import report, report_fitted
 
     typer.echo((report_fitted if fitted else report)(load_robot(variant, urdf), model=model))
 
@@ -143,7 +143,7 @@ def view(
             fail(f"--html {html} is a folder: give the path of the page to write, e.g. {html / 'h4.html'}")
         if not html.parent.is_dir():
             fail(f"--html {html}: folder {html.parent} does not exist")
-    from h4pin import viewer
+    from h4pin.io import viewer
 
     h4 = load_robot(variant, urdf)
     scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
@@ -183,8 +183,8 @@ def tolerance(
     model: str = typer.Option("paper", help="'paper' or 'consistent'"),
 ) -> None:
     """Tolerance study: compliance and static pose error of robots with manufacturing errors."""
-    from h4pin import tolerance as tol
     from h4pin.errors import ParameterError
+    from h4pin.studies import tolerance as tol
 
     sigmas: dict[str, float] = {}
     for item in sigma:
@@ -211,7 +211,7 @@ def export(
     urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
 ) -> None:
     """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors)."""
-    from h4pin.mjcf import write_mjcf
+    from h4pin.io.mjcf import write_mjcf
 
     if mjcf.is_dir():
         fail(f"cannot write {mjcf}: it is a folder")
@@ -241,8 +241,8 @@ def atlas(
     """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability."""
     import numpy as np
 
-    from h4pin import atlas as atlas_module
-    from h4pin.table2 import centre_pose
+    from h4pin.kinematics.closed_form import centre_pose
+    from h4pin.studies import atlas as atlas_module
 
     if z and z_range:
         fail("give --z or --z-range, not both")
@@ -276,7 +276,7 @@ def sweep(
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """Design sweep: which designs reach the task box, their worst compliance and workspace volume."""
-    from h4pin import sweep as sweep_module
+    from h4pin.studies import sweep as sweep_module
 
     spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model)
     res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)

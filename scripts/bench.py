@@ -5,7 +5,7 @@
 Rows: the vectorised batch path (eq. 30 with the inverse geometry, model "paper"), the
 single-pose path through Pinocchio's Jacobians, a straightforward per-pose numpy implementation
 of eq. 30 (loops, np.cross, explicit inverses: what one writes first), and the two validation
-routes; then the compiled kernel (:mod:`h4pin.kernel`) on 1 and 2 threads, one pose through it,
+routes; then the compiled kernel (:mod:`h4pin.stiffness.kernel`) on 1 and 2 threads, one pose through it,
 its memory per pose, and optionally a 1e7-pose streaming run (``--big``), the Dask overhead per
 task (``--dask``) and a design sweep of 10 000 designs x 1 000 poses (``--sweep``). The naive
 implementation and the kernel are compared to h4pin's result, so the table is only printed if
@@ -25,10 +25,12 @@ import numba
 import numpy as np
 
 import h4pin
-from h4pin import deformed, kernel, statics
-from h4pin.params import LEG_LATERAL, H4Params
-from h4pin.stiffness import compliance
-from h4pin.table2 import centre_pose
+from h4pin import verdicts
+from h4pin.checks import deformed, statics
+from h4pin.description.params import LEG_LATERAL, H4Params
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.stiffness import kernel
+from h4pin.stiffness.api import compliance
 
 
 def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
@@ -140,7 +142,7 @@ def big_stream(h4: h4pin.H4, n: int, chunk: int) -> tuple[float, float, float]:
     worst = 0.0
     t0 = time.perf_counter()
     for _, part in kernel.iter_compliance(kern, chunks(), "paper", chunk=chunk):
-        ok = part.status == kernel.OK
+        ok = part.status == verdicts.OK
         worst = max(worst, float(np.max(part.K[:, [0, 1, 2], [0, 1, 2]][ok], initial=0.0)))
     return time.perf_counter() - t0, peak_rss_mb(), worst
 
@@ -231,7 +233,7 @@ def main() -> None:
               f"peak RSS {rss:.0f} MB (target < 1024 MB: {'met' if rss < 1024 else 'MISSED'}), "
               f"worst K_xx {worst * 1e6:.1f} um/N")
     if args.dask or args.sweep:
-        from h4pin import sweep
+        from h4pin.studies import sweep
 
         if args.dask:
             over = sweep.dask_overhead(workers=2)
@@ -247,8 +249,8 @@ def main() -> None:
 
 
 def bench_tolerance(n_robots: int = 10_000, n_poses: int = 100) -> None:
-    """Time the tolerance study (:func:`h4pin.tolerance.study`): robots x poses around the centre."""
-    from h4pin import tolerance
+    """Time the tolerance study (:func:`h4pin.studies.tolerance.study`): robots x poses around the centre."""
+    from h4pin.studies import tolerance
 
     h4 = h4pin.load("prototype")
     rng = np.random.default_rng(0)

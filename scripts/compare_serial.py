@@ -3,13 +3,13 @@
 """The H4 beside a serial arm: largest translational compliance over a comparable workspace.
 
 Both robots are sampled on the same box of tool positions: 0.2 m x 0.2 m in x, y (11 x 11) at
-three heights 5 cm apart, centred on the H4's workspace centre (``h4pin.table2.centre_pose``,
+three heights 5 cm apart, centred on the H4's workspace centre (``h4pin.kinematics.closed_form.centre_pose``,
 theta = 0) and on the UR5's tool point at q = (0, -90, 90, -90, -90, 0) deg (elbow up, tool
 pointing down; the tool keeps that orientation over the box, by inverse kinematics).
 
-- H4: ``h4pin.stiffness.compliance(h4, poses, on_error="nan")`` (model 'consistent').
-- UR5 (example-robot-data): ``h4pin.serial.serial_compliance`` at ``tool0`` with
-  ``h4pin.serial.UR5_JOINT_STIFFNESS`` -- ASSUMED joint stiffness, see that constant and
+- H4: ``h4pin.stiffness.api.compliance(h4, poses, on_error="nan")`` (model 'consistent').
+- UR5 (example-robot-data): ``h4pin.studies.serial.serial_compliance`` at ``tool0`` with
+  ``h4pin.studies.serial.UR5_JOINT_STIFFNESS`` -- ASSUMED joint stiffness, see that constant and
   docs/interop.md; the arm's numbers scale as 1/k.
 
 Prints min / median / max of the largest eigenvalue (um/N) and plots maps at mid height and the
@@ -32,9 +32,9 @@ import pinocchio as pin  # noqa: E402
 
 import h4pin  # noqa: E402
 from h4pin.files import save_figure
-from h4pin.serial import UR5_JOINT_STIFFNESS, serial_compliance  # noqa: E402
-from h4pin.stiffness import compliance  # noqa: E402
-from h4pin.table2 import centre_pose  # noqa: E402
+from h4pin.kinematics.closed_form import centre_pose  # noqa: E402
+from h4pin.stiffness.api import compliance  # noqa: E402
+from h4pin.studies.serial import UR5_JOINT_STIFFNESS, serial_compliance  # noqa: E402
 
 SPAN, N, HEIGHTS = 0.2, 11, (-0.05, 0.0, 0.05)
 UR5_START = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0])

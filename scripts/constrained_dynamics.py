@@ -20,7 +20,7 @@ import pinocchio as pin
 
 import h4pin
 from h4pin._compat import init_constraint_dynamics, set_baumgarte
-from h4pin.table2 import centre_pose
+from h4pin.kinematics.closed_form import centre_pose
 
 
 def simulate(h4: h4pin.H4, duration: float = 1.0, dt: float = 1e-4, torque_step: float = 0.05,

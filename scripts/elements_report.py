@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""Term-by-term report of Table II with the elements eq. 30 neglects (h4pin.elements).
+"""Term-by-term report of Table II with the elements eq. 30 neglects (h4pin.stiffness.elements).
 
 At q_i = 45 deg, with illustrative element data (orders of magnitude of bearings, ball joints,
 the URDF's 8 mm aluminium plate rods, actuator shafts and motor mounts, not prototype data; the
-same value for every element of a kind; see h4pin.elements.ILLUSTRATIVE), or with the elements
+same value for every element of a kind; see h4pin.description.elements.ILLUSTRATIVE), or with the elements
 written in a URDF (``--urdf``: ``<h4_revolute>``, ``<h4_ball>``, ``<h4_plate_bar>``,
-``<h4_actuator shaft_tilt>``, ``<h4_base>``, see h4pin.elements): each term's xx, yy, zz, xz in
+``<h4_actuator shaft_tilt>``, ``<h4_base>``, see h4pin.stiffness.elements): each term's xx, yy, zz, xz in
 um/N and its share; each element's shape against the two shapes of eq. 30 (docs/gap.md); and the
 element compliance (or rigidity EI, GJ) of every element of that kind that would make its term's
 xx 1 um/N (each term is linear in its compliance, inversely so in a rigidity).
@@ -21,9 +21,9 @@ import argparse
 import numpy as np
 
 import h4pin
-from h4pin import elements as el
-from h4pin import gap
-from h4pin.table2 import centre_pose
+from h4pin.description import elements as el
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.studies import gap
 
 US = 1e6
 UNITS = el.UNITS
@@ -44,7 +44,8 @@ def main() -> None:
     h4 = h4pin.load(args.urdf or "prototype")
     elements = h4.elements if args.urdf else el.ILLUSTRATIVE
     pose = centre_pose(h4)
-    entries = el.term_entries(h4, pose, elements)
+    terms = h4pin.compliance(h4, pose, "consistent", elements=elements, terms=True).terms
+    entries = {t: m[[0, 1, 2, 0], [0, 1, 2, 2]] for t, m in terms.items()}  # Table II entries xx, yy, zz, xz
     total = sum(entries.values())
     print(f"Elements ({'from ' + args.urdf if args.urdf else 'illustrative'}): "
           + ", ".join(f"{n} = {_values(getattr(elements, n))} {UNITS[n]}" for n in el.ELEMENTS))
@@ -54,7 +55,6 @@ def main() -> None:
         ratios = "  ".join(f"{x / v[0]:5.3f}" for x in v[1:]) if has_xx else "  (no xx)"
         print(f"{name:<18}" + "".join(f"{x * US:9.3f}" for x in v) + f"{v[0] / total[0]:12.1%}   " + ratios)
     print(f"{'total':<18}" + "".join(f"{x * US:9.3f}" for x in total))
-    terms = el.compliance_with_elements(h4, pose, elements).terms
     base = {"control": terms["control"][:3, :3], "torsion": terms["torsion"][:3, :3]}
     print("\nElement shape vs the two shapes of eq. 30 (axial, tilt), and the compliance (rigidity EI, GJ) of every "
           "element of the kind for which its term alone has xx = 1 um/N:")

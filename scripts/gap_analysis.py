@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from h4pin import gap
+from h4pin.studies import gap
 
 US = 1e6  # m/N -> um/N, printing only
 

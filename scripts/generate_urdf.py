@@ -3,10 +3,10 @@
 """Write the shipped URDF variants, urdf/h4_<name>.urdf, from h4pin.VARIANTS.
 
 With each URDF: its Extended-URDF sidecar urdf/h4_<name>.yaml (closures and motors for Gepetto's
-loader, see h4pin.interop) and its SRDF srdf/h4_<name>.srdf (reference configuration q0, for
-example-robot-data's loaders, see h4pin.erd).
+loader, see h4pin.io.interop) and its SRDF srdf/h4_<name>.srdf (reference configuration q0, for
+example-robot-data's loaders, see h4pin.io.erd).
 
-Run after changing h4pin/params.py or h4pin/urdf.py; tests/test_urdf.py fails while the
+Run after changing h4pin/description/params.py or h4pin/description/urdf.py; tests/test_urdf.py fails while the
 committed files are not current. ``--check`` only reports stale files (exit 1 if any).
 """
 
@@ -16,8 +16,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from h4pin.params import VARIANTS
-from h4pin.urdf import to_urdf, write_text_atomic
+from h4pin.description.urdf import to_urdf, write_text_atomic
+from h4pin.studies.variants import GENERATORS
 
 URDF_DIR = Path(__file__).resolve().parent.parent / "urdf"
 SRDF_DIR = URDF_DIR.parent / "srdf"
@@ -26,18 +26,18 @@ SRDF_DIR = URDF_DIR.parent / "srdf"
 def sidecar_files() -> dict[Path, str]:
     """The Extended-URDF sidecars urdf/h4_<name>.yaml, generated from the URDFs' closures."""
     from h4pin import load
-    from h4pin.interop import extended_urdf_yaml
+    from h4pin.io.interop import extended_urdf_yaml
 
     return {URDF_DIR / f"h4_{name}.yaml": extended_urdf_yaml(load(make()), f"h4_{name}.urdf")
-            for name, make in VARIANTS.items()}
+            for name, make in GENERATORS.items()}
 
 
 def srdf_files() -> dict[Path, str]:
     """The SRDFs srdf/h4_<name>.srdf with the reference configuration q0 (example-robot-data layout)."""
     from h4pin import load
-    from h4pin.erd import srdf
+    from h4pin.io.erd import srdf
 
-    return {SRDF_DIR / f"h4_{name}.srdf": srdf(load(make()), f"h4_{name}") for name, make in VARIANTS.items()}
+    return {SRDF_DIR / f"h4_{name}.srdf": srdf(load(make()), f"h4_{name}") for name, make in GENERATORS.items()}
 
 
 def check_or_write(files: dict[Path, str], check: bool) -> list[Path]:
@@ -62,7 +62,7 @@ def main() -> int:
     parser.add_argument("--check", action="store_true", help="report stale files, write nothing")
     args = parser.parse_args()
     stale = []
-    for name, make in VARIANTS.items():
+    for name, make in GENERATORS.items():
         path = URDF_DIR / f"h4_{name}.urdf"
         text = to_urdf(make(), path.stem)
         if path.is_file() and path.read_text() == text:

@@ -32,9 +32,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import h4pin  # noqa: E402
-from h4pin import gap, identify  # noqa: E402
-from h4pin.stiffness import compliance  # noqa: E402
-from h4pin.table2 import CENTRE_Q  # noqa: E402
+from h4pin.kinematics.closed_form import CENTRE_Q  # noqa: E402
+from h4pin.stiffness.api import compliance  # noqa: E402
+from h4pin.studies import (
+    gap,  # noqa: E402
+    identify,  # noqa: E402
+)
 
 US = 1e6
 

@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 
 import h4pin
-from h4pin import viewer
+from h4pin.io import viewer
 
 
 def main() -> None:

@@ -25,8 +25,9 @@ from tqdm import tqdm  # noqa: E402
 
 import h4pin  # noqa: E402
 from h4pin.files import save_figure
-from h4pin.stiffness import TERMS, compliance  # noqa: E402
-from h4pin.table2 import CENTRE_Q, PAPER_COMPUTED, PAPER_MEASURED  # noqa: E402
+from h4pin.kinematics.closed_form import CENTRE_Q
+from h4pin.stiffness.api import TERMS, compliance  # noqa: E402
+from h4pin.studies.paper import PAPER_COMPUTED, PAPER_MEASURED  # noqa: E402
 
 ENTRIES = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "xz": (0, 2)}
 BASE = h4pin.H4Params()

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 import h4pin
-from h4pin import tolerance
+from h4pin.studies import tolerance
 
 
 def main() -> None:

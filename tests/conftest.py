@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import h4pin
-from h4pin.table2 import centre_pose
+from h4pin.kinematics.closed_form import centre_pose
 
 
 @pytest.fixture(scope="session")

@@ -12,10 +12,13 @@ import matplotlib
 import numpy as np
 import pytest
 
-from h4pin import atlas, geometry, kernel, viewer, viewer_atlas
+from h4pin import verdicts
 from h4pin.errors import ParameterError
-from h4pin.matrices import from_points
-from h4pin.stiffness import compliance
+from h4pin.io import viewer, viewer_atlas
+from h4pin.kinematics import closed_form as geometry
+from h4pin.stiffness.api import compliance
+from h4pin.stiffness.matrices import from_points
+from h4pin.studies import atlas
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -35,7 +38,7 @@ def test_values_equal_the_reference_at_the_grid_points(proto, ds):
     """Every reachable grid point: the five quantities from h4pin.compliance (numpy) and eq. 8."""
     stacked = ds.stack(p=("theta", "z", "y", "x"))
     poses = np.stack([stacked.x.values, stacked.y.values, stacked.z.values, stacked.theta.values], axis=1)
-    ok = stacked.status.values == kernel.OK
+    ok = stacked.status.values == verdicts.OK
     assert 20 < ok.sum() < len(ok)
     x = poses[ok]
     ref = compliance(proto, x, "consistent")
@@ -56,11 +59,11 @@ def test_unreachable_points_are_nan_with_their_status(proto, ds):
     q = geometry.inverse_geometry(proto.geometry, poses, on_error="nan", check=False)
     unreachable = np.any(np.isnan(q), axis=1)
     assert unreachable.sum() > 10
-    np.testing.assert_array_equal(stacked.status.values == kernel.UNREACHABLE, unreachable)
+    np.testing.assert_array_equal(stacked.status.values == verdicts.UNREACHABLE, unreachable)
     for q in atlas.QUANTITIES:
         assert np.all(np.isnan(stacked[q].values[unreachable])), q
         if q != "cond_M1":
-            assert np.all(np.isnan(stacked[q].values[stacked.status.values != kernel.OK])), q
+            assert np.all(np.isnan(stacked[q].values[stacked.status.values != verdicts.OK])), q
     assert ds.compliance_max.attrs["units"] == "m/N" and ds.stiffness_z.attrs["units"] == "N/m"
     assert ds.x.attrs["units"] == "m" and ds.theta.attrs["units"] == "rad"
 
@@ -98,7 +101,7 @@ def test_maps_have_one_figure_per_quantity(ds, tmp_path):
 def test_viewer_point_cloud(proto, ds):
     positions, colours, lo, hi = viewer_atlas.atlas_points(ds, "compliance_max", theta=0.4)
     sl = ds.sel(theta=0.4)
-    ok = sl.status.values == kernel.OK
+    ok = sl.status.values == verdicts.OK
     assert positions.shape == (3, ok.sum()) and colours.shape == (3, ok.sum())
     values = sl.compliance_max.values[ok]
     assert lo >= values.min() * (1 - 1e-12) and hi <= values.max() * (1 + 1e-12) and lo < hi
@@ -126,13 +129,13 @@ def test_a_toleranced_robot_goes_through_the_numpy_path(grid):
     """The kernel needs exact parallelograms; a toleranced robot's atlas comes from the numpy path
     and equals h4pin.compliance and the statics route at its grid points."""
     import h4pin
-    from h4pin import statics
+    from h4pin.checks import statics
 
     tol = h4pin.load("toleranced")
     small = {"x": grid["x"][2:6], "y": grid["y"][2:5], "z": grid["z"][1:], "theta": [0.0]}
     res = atlas.atlas(tol, **small, model="consistent", progress=False).stack(p=("theta", "z", "y", "x"))
     poses = np.stack([res.x.values, res.y.values, res.z.values, res.theta.values], axis=1)
-    ok = res.status.values == kernel.OK
+    ok = res.status.values == verdicts.OK
     assert ok.sum() >= 6
     ref = compliance(tol, poses[ok], "consistent", method="closed_form")
     lam = np.linalg.eigvalsh(ref.translational)

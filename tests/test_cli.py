@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 import h4pin
-from h4pin.stiffness import compliance
-from h4pin.table2 import CENTRE_Q, PAPER_COMPUTED, centre_pose
+from h4pin.kinematics.closed_form import CENTRE_Q, centre_pose
+from h4pin.stiffness.api import compliance
+from h4pin.studies.paper import PAPER_COMPUTED
 
 ROOT = Path(__file__).resolve().parent.parent
 

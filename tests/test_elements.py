@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Optional elements beyond eq. 30 (h4pin.elements): unit loads on the statics route against
+"""Optional elements beyond eq. 30 (h4pin.stiffness.elements): unit loads on the statics route against
 finite differences of the deformed robot, and exact reduction to eq. 30 when off."""
 
 from __future__ import annotations
@@ -10,10 +10,13 @@ import re
 import numpy as np
 import pytest
 
-from h4pin import ParameterError, deformed, statics
-from h4pin import elements as el
-from h4pin.geometry import skew
-from h4pin.stiffness import TERMS, compliance
+from h4pin import ParameterError
+from h4pin.checks import deformed, statics
+from h4pin.checks.elements import element_terms_fd
+from h4pin.description.elements import ELEMENTS, ILLUSTRATIVE, Elements
+from h4pin.kinematics.closed_form import skew
+from h4pin.stiffness import elements as el
+from h4pin.stiffness.api import TERMS, compliance
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -25,10 +28,10 @@ def test_element_terms_equal_finite_differences(proto, poses, n_pose):
     """Each element: c sum g g^T (joint reactions, bar tensions from the plate equilibrium) vs
     c sum G G^T (plate motion of the deformed robot per joint displacement, tilt, bar length)."""
     x = poses[n_pose]
-    ours = el.element_terms(proto.geometry, x, el.ILLUSTRATIVE)
-    fd = el.element_terms_fd(proto.geometry, x, el.ILLUSTRATIVE)
-    assert set(ours) == set(el.ELEMENTS) == set(fd)
-    for name in el.ELEMENTS:
+    ours = el.element_terms(proto.geometry, x, ILLUSTRATIVE)
+    fd = element_terms_fd(proto.geometry, x, ILLUSTRATIVE)
+    assert set(ours) == set(ELEMENTS) == set(fd)
+    for name in ELEMENTS:
         assert rel(ours[name], fd[name]) < 1e-6, name
 
 
@@ -38,7 +41,7 @@ def test_plate_loads_agree_with_the_statics_route(proto, poses):
     x = poses[4]
     g = proto.geometry
     assert rel(el.plate_loads(g, x)["bars"], statics.bar_forces(g, x)) < 1e-12
-    ball = el.element_terms(g, x, el.Elements(ball_radial=3e-8))["ball_radial"]
+    ball = el.element_terms(g, x, Elements(ball_radial=3e-8))["ball_radial"]
     tension = statics.compliance_terms(g, x)["tension"]
     c_tension = g.compliances()["tension"]
     assert np.ptp(c_tension) == 0.0  # the prototype's bars are equal: the terms are proportional
@@ -48,7 +51,7 @@ def test_plate_loads_agree_with_the_statics_route(proto, poses):
 def test_joint_reactions_balance_the_lateral_bars(proto, poses):
     """Sum of forces on lateral bar k: joint force + bar pulls = 0 (world frame); the joint couple
     is normal to the joint axis."""
-    from h4pin.geometry import points
+    from h4pin.kinematics.closed_form import points
 
     x = poses[6]
     loads = el.plate_loads(proto.geometry, x)
@@ -65,38 +68,39 @@ def test_joint_reactions_balance_the_lateral_bars(proto, poses):
 def test_off_is_exactly_eq_30(proto, poses):
     for model in ("paper", "consistent"):
         base = compliance(proto, poses[0], model)
-        off = el.compliance_with_elements(proto, poses[0], el.Elements(), model)
+        off = compliance(proto, poses[0], model, elements=Elements())
         np.testing.assert_array_equal(off.matrix, base.matrix)
+        assert off.elements is None
         assert tuple(off.terms) == TERMS
 
 
 def test_on_stays_symmetric_and_equals_the_deformed_route(proto, poses):
     """Consistent K + elements = sum over all springs of the deformed robot (finite differences)."""
     x = poses[3]
-    res = el.compliance_with_elements(proto, x, el.ILLUSTRATIVE)
+    res = compliance(proto, x, 'consistent', elements=ILLUSTRATIVE)
     assert rel(res.matrix, res.matrix.T) < 1e-13 and np.linalg.eigvalsh(res.matrix).min() > 0
     fd = sum(deformed.compliance_terms(proto.geometry, x).values()) + sum(
-        el.element_terms_fd(proto.geometry, x, el.ILLUSTRATIVE).values())
+        element_terms_fd(proto.geometry, x, ILLUSTRATIVE).values())
     assert rel(res.matrix, fd) < 1e-6
     assert rel(sum(res.terms.values()), res.matrix) < 1e-14
-    assert set(res.terms) == set(TERMS) | set(el.ELEMENTS)
+    assert set(res.terms) == set(TERMS) | set(ELEMENTS)
 
 
 @pytest.mark.parametrize("bad", [-1e-8, np.nan, "stiff"])
 def test_bad_element_values(bad):
     with pytest.raises(ParameterError, match="revolute_tilt"):
-        el.Elements(revolute_tilt=bad)
-    assert dataclasses.replace(el.Elements(), ball_radial=1e-8).off is False
+        Elements(revolute_tilt=bad)
+    assert dataclasses.replace(Elements(), ball_radial=1e-8).off is False
 
 
-def test_term_entries_sum_to_the_table(proto, centre):
-    entries = el.term_entries(proto, centre)
-    table = el.compliance_with_elements(proto, centre, el.ILLUSTRATIVE).translational
-    np.testing.assert_allclose(sum(entries.values()), table[[0, 1, 2, 0], [0, 1, 2, 2]], rtol=1e-14)
+def test_element_terms_sum_to_the_table(proto, centre):
+    res = compliance(proto, centre, "consistent", elements=ILLUSTRATIVE)
+    entries = {t: m[[0, 1, 2, 0], [0, 1, 2, 2]] for t, m in res.terms.items()}
+    np.testing.assert_allclose(sum(entries.values()), res.translational[[0, 1, 2, 0], [0, 1, 2, 2]], rtol=1e-14)
     assert entries["revolute_tilt"][0] > 0 and abs(entries["revolute_tilt"][2]) < 1e-12 * entries["revolute_tilt"][0]
 
 
-PER_ELEMENT = el.Elements(revolute_radial=[1e-8, 3e-8], revolute_axial=[2e-8, 0.5e-8], revolute_tilt=[5e-5, 2e-5],
+PER_ELEMENT = Elements(revolute_radial=[1e-8, 3e-8], revolute_axial=[2e-8, 0.5e-8], revolute_tilt=[5e-5, 2e-5],
                           ball_radial=np.linspace(1e-8, 4.5e-8, 8), central_EI=[225.0, 400.0], central_GJ=[167.0, 90.0],
                           lateral_EI=[200.0, 250.0, 300.0, 350.0], lateral_GJ=[150.0, np.inf, 120.0, 180.0],
                           shaft_tilt=[1e-5, 2e-5, 3e-5, 4e-5], base_translation=[1e-8, 2e-8, 0.0, 3e-8],
@@ -114,13 +118,13 @@ def test_per_element_values_on_a_toleranced_robot_with_tilted_joint_axes():
     assert not g.ideal
     x = np.array([0.0, 0.0, -0.43, 0.2])
     ours = el.element_terms(g, x, PER_ELEMENT)
-    fd = el.element_terms_fd(g, x, PER_ELEMENT)
-    for name in el.ELEMENTS:
+    fd = element_terms_fd(g, x, PER_ELEMENT)
+    for name in ELEMENTS:
         assert rel(ours[name], fd[name]) < 1e-6, name
     # one element on, the others off: only its own term
-    one = el.element_terms(g, x, el.Elements(revolute_tilt=[0.0, 2e-5]))
+    one = el.element_terms(g, x, Elements(revolute_tilt=[0.0, 2e-5]))
     assert set(one) == {"revolute_tilt"}
-    assert rel(one["revolute_tilt"], el.element_terms_fd(g, x, el.Elements(revolute_tilt=[0.0, 2e-5]))
+    assert rel(one["revolute_tilt"], element_terms_fd(g, x, Elements(revolute_tilt=[0.0, 2e-5]))
                ["revolute_tilt"]) < 1e-6
 
 
@@ -128,7 +132,7 @@ def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses)
     """<h4_revolute> in the lateral joints and <h4_ball> in the bar links, read at load, give
     the K of the same elements passed in Python; without them the robot's elements are off."""
     from h4pin import H4Params, load
-    from h4pin.urdf import to_urdf
+    from h4pin.description.urdf import to_urdf
 
     assert proto.elements.off
     text = to_urdf(H4Params(), "h4_with_elements", elements=PER_ELEMENT)
@@ -138,8 +142,8 @@ def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses)
     robot = load_text(text)
     assert robot.elements.allclose(PER_ELEMENT)
     x = poses[5]
-    from_urdf = el.compliance_with_elements(robot, x)
-    from_python = el.compliance_with_elements(proto, x, PER_ELEMENT)
+    from_urdf = compliance(robot, x, 'consistent')
+    from_python = compliance(proto, x, 'consistent', elements=PER_ELEMENT)
     np.testing.assert_array_equal(from_urdf.matrix, from_python.matrix)
     assert rel(from_urdf.matrix, compliance(proto, x, "consistent").matrix) > 1e-3  # the elements count
     # an element written by hand, one attribute only: the others stay off
@@ -179,7 +183,7 @@ def load_text(text: str):
 ])
 def test_non_physical_element_in_the_urdf_names_it(old, new, where):
     from h4pin import H4Params, MalformedURDFError
-    from h4pin.urdf import to_urdf
+    from h4pin.description.urdf import to_urdf
 
     text = to_urdf(H4Params(), elements=PER_ELEMENT)
     assert old in text
@@ -236,19 +240,19 @@ def test_leg_wrenches_on_the_base_balance_the_external_load(proto, poses):
         np.testing.assert_allclose(loads["shaft_tilt"][2 * i:2 * i + 2], normal.T @ base[i, 3:], atol=1e-15)
 
 
-@pytest.mark.parametrize("one", [el.Elements(central_EI=[np.inf, 300.0]), el.Elements(lateral_GJ=[80.0, np.inf, np.inf,
-                                 np.inf]), el.Elements(shaft_tilt=[0.0, 0.0, 3e-5, 0.0]),
-                                 el.Elements(base_translation=[0.0, 2e-8, 0.0, 0.0]), el.Elements(base_rotation=2e-5)])
+@pytest.mark.parametrize("one", [Elements(central_EI=[np.inf, 300.0]), Elements(lateral_GJ=[80.0, np.inf, np.inf,
+                                 np.inf]), Elements(shaft_tilt=[0.0, 0.0, 3e-5, 0.0]),
+                                 Elements(base_translation=[0.0, 2e-8, 0.0, 0.0]), Elements(base_rotation=2e-5)])
 def test_one_new_element_on_alone(proto, poses, one):
     """One element of one kind on: only its term, equal to finite differences; K stays symmetric
     positive definite and equals the deformed route's total."""
     x = poses[1]
     ours = el.element_terms(proto.geometry, x, one)
-    fd = el.element_terms_fd(proto.geometry, x, one)
+    fd = element_terms_fd(proto.geometry, x, one)
     assert len(ours) == 1 and set(ours) == set(fd)
     name = next(iter(ours))
     assert rel(ours[name], fd[name]) < 1e-6, name
-    res = el.compliance_with_elements(proto, x, one)
+    res = compliance(proto, x, 'consistent', elements=one)
     assert rel(res.matrix, res.matrix.T) < 1e-13 and np.linalg.eigvalsh(res.matrix).min() > 0
     total = sum(deformed.compliance_terms(proto.geometry, x).values()) + fd[name]
     assert rel(res.matrix, total) < 1e-6
@@ -259,15 +263,15 @@ def test_one_new_element_on_alone(proto, poses, one):
                                             ("base_translation", "soft")])
 def test_bad_new_element_values(field, bad):
     with pytest.raises(ParameterError, match=field):
-        el.Elements(**{field: bad})
-    assert el.Elements(central_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0).off
+        Elements(**{field: bad})
+    assert Elements(central_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0).off
 
 
 def test_new_elements_off_are_bitwise_eq_30(proto, poses):
     """Rigid beams (inf) and zero compliances written explicitly: K is eq. 30's, bit for bit."""
-    off = el.Elements(central_EI=np.inf, central_GJ=np.inf, lateral_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0,
+    off = Elements(central_EI=np.inf, central_GJ=np.inf, lateral_EI=np.inf, lateral_GJ=np.inf, shaft_tilt=0.0,
                       base_translation=0.0, base_rotation=0.0)
     assert off.off
     for model in ("paper", "consistent"):
         base = compliance(proto, poses[2], model)
-        np.testing.assert_array_equal(el.compliance_with_elements(proto, poses[2], off, model).matrix, base.matrix)
+        np.testing.assert_array_equal(compliance(proto, poses[2], model, elements=off).matrix, base.matrix)

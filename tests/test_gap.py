@@ -1,14 +1,16 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The two-shape gap analysis (h4pin.gap): each claim against an independent computation."""
+"""The two-shape gap analysis (h4pin.studies.gap): each claim against an independent computation."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from h4pin import H4Params, gap, load, statics
-from h4pin.model import geometry_from_params
-from h4pin.stiffness import TERMS, compliance
+from h4pin import H4Params, load
+from h4pin.checks import statics
+from h4pin.description.geometry import geometry_from_params
+from h4pin.stiffness.api import TERMS, compliance
+from h4pin.studies import gap
 
 
 @pytest.fixture(scope="module")

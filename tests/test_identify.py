@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Identification against Table II (h4pin.identify) and the fitted variant."""
+"""Identification against Table II (h4pin.studies.identify) and the fitted variant."""
 
 from __future__ import annotations
 
@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from h4pin import gap, identify, load
+from h4pin import load
 from h4pin.cli import app
-from h4pin.stiffness import compliance
-from h4pin.table2 import CENTRE_Q
+from h4pin.kinematics.closed_form import CENTRE_Q
+from h4pin.stiffness.api import compliance
+from h4pin.studies import gap, identify
 
 
 def built_table(values: dict[str, float]) -> np.ndarray:
@@ -102,6 +103,6 @@ def test_fitted_is_a_named_variant_never_the_default():
     np.testing.assert_allclose(compliance(shipped, x).matrix, compliance(built, x).matrix, rtol=1e-12, atol=0)
     assert load().source.endswith("h4_prototype.urdf")
     assert not np.allclose(compliance(load(), x).translational, compliance(shipped, x).translational, rtol=0.05)
-    code = "import sys, h4pin; print('h4pin.identify' in sys.modules, 'scipy.optimize' in sys.modules)"
+    code = "import sys, h4pin; print('h4pin.studies.identify' in sys.modules, 'scipy.optimize' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]

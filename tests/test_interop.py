@@ -18,10 +18,10 @@ import pinocchio as pin
 import pytest
 
 import h4pin
-from h4pin import interop
+from h4pin.description.params import VARIANTS
 from h4pin.errors import MalformedURDFError, ParameterError
-from h4pin.params import VARIANTS
-from h4pin.table2 import centre_pose
+from h4pin.io import interop
+from h4pin.kinematics.closed_form import centre_pose
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -150,7 +150,7 @@ def test_toolbox_closed_loop_jacobian_matches_h4(variant):
         np.testing.assert_allclose(j_world[[0, 1, 2, 5]], ref, rtol=0, atol=1e-12)
         # The plate does not tilt: no w_x, w_y.
         np.testing.assert_allclose(j_world[[3, 4]], 0, atol=1e-12)
-        # h4pin.interop's own, world-aligned, needs no priming.
+        # h4pin.io.interop's own, world-aligned, needs no priming.
         mine = interop.closed_loop_frame_jacobian(interop.closed_loop(h4), q, "D")
         np.testing.assert_allclose(mine, j_world, rtol=0, atol=1e-12)
 
@@ -211,7 +211,7 @@ def test_actuated_joint_names_are_the_actuators(proto):
 # ----------------------------------------------------------------- example-robot-data
 def test_example_robot_data_loads_the_h4():
     erd = pytest.importorskip("example_robot_data")
-    from h4pin import erd as h4_erd
+    from h4pin.io import erd as h4_erd
 
     assert {"h4", "h4_prototype", "h4_symmetric"} <= set(erd.ROBOTS)
     for name, variant in (("h4", "prototype"), ("h4_symmetric", "symmetric")):

@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 from conftest import sample_poses
 
-from h4pin import ParameterError, PoseError, SingularPoseError, geometry, kernel, statics
-from h4pin.matrices import from_points
-from h4pin.model import geometry_from_params
-from h4pin.stiffness import TERMS, compliance
-from h4pin.table2 import centre_pose
+from h4pin import ParameterError, PoseError, SingularPoseError, verdicts
+from h4pin.checks import statics
+from h4pin.kinematics import closed_form as geometry
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.stiffness import kernel
+from h4pin.stiffness.api import TERMS, compliance
+from h4pin.stiffness.matrices import from_points
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -31,9 +33,9 @@ def per_pose_rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.max(np.abs(a - b), axis=(-2, -1)) / np.max(np.abs(b), axis=(-2, -1))))
 
 
-def writable_geometry(params) -> types.SimpleNamespace:
-    """The kernel's geometry object of ``params``, with writable copies of its arrays."""
-    ns = kernel._namespace(geometry_from_params(params))
+def writable_geometry(g) -> types.SimpleNamespace:
+    """The kernel's geometry object of a robot's geometry, with writable copies of its arrays."""
+    ns = kernel._namespace(g)
     return types.SimpleNamespace(**{k: np.array(v) if isinstance(v, np.ndarray) else v for k, v in vars(ns).items()})
 
 
@@ -42,9 +44,9 @@ def closed_form(h4, xs: np.ndarray, q: np.ndarray):
     return from_points(h4.geometry, geometry.points(h4.geometry, geometry.rigid_state(xs, q)))
 
 
-def open_geometry(params) -> types.SimpleNamespace:
-    """The geometry of ``params`` with every limit opened (only reachability and M1 remain)."""
-    g = writable_geometry(params)
+def open_geometry(geometry) -> types.SimpleNamespace:
+    """A robot's geometry with every limit opened (only reachability and M1 remain)."""
+    g = writable_geometry(geometry)
     g.q_lo[:], g.q_hi[:], g.omega_lo[:], g.omega_hi[:] = -9.0, 9.0, -9.0, 9.0
     g.bar_clearance = 0.0
     return g
@@ -79,8 +81,8 @@ def test_kernel_equals_reference(request, variant, model):
     h4 = request.getfixturevalue(variant)
     xs = well_conditioned(h4, sample_poses(h4, 150, seed=7))
     assert len(xs) > 50
-    res = kernel.compliance_batch(h4.params, xs, model)
-    ref = compliance(h4, xs, model)
+    res = kernel.compliance_batch(h4.geometry, xs, model)
+    ref = compliance(h4, xs, model, method="closed_form")  # the numpy reference, not the kernel
     np.testing.assert_array_equal(res.status, 0)
     assert per_pose_rel(res.K, ref.matrix) <= 1e-12
     np.testing.assert_allclose(res.q, ref.q, rtol=0, atol=1e-12)
@@ -90,8 +92,8 @@ def test_kernel_equals_reference(request, variant, model):
 @pytest.mark.parametrize("model", ["paper", "consistent"])
 def test_terms_and_jacobian_equal_reference(proto, model):
     xs = sample_poses(proto, 60, seed=8)
-    res = kernel.compliance_batch(proto.params, xs, model, terms=True, jacobian=True)
-    ref = compliance(proto, xs, model, terms=True)
+    res = kernel.compliance_batch(proto.geometry, xs, model, terms=True, jacobian=True)
+    ref = compliance(proto, xs, model, terms=True, method="closed_form")
     for t, name in enumerate(TERMS):
         assert per_pose_rel(res.terms[:, t], ref.terms[name]) <= 1e-12, name
     assert per_pose_rel(res.K, sum(ref.terms.values())) <= 1e-12
@@ -100,30 +102,30 @@ def test_terms_and_jacobian_equal_reference(proto, model):
 
 def test_one_pose_equals_batch(proto):
     xs = sample_poses(proto, 5, seed=9)
-    kern = kernel.prepare(proto.params)
+    kern = kernel.prepare(proto.geometry)
     batch = kernel.compliance_batch(kern, xs, "consistent")
     for n, x in enumerate(xs):
         K, q, cond, status = kern(x, "consistent")
         np.testing.assert_array_equal(K, batch.K[n])
         np.testing.assert_array_equal(q, batch.q[n])
-        assert cond == batch.condition[n] and status == batch.status[n] == kernel.OK
-        K2, *_ = kernel.compliance_one(proto.params, x, "consistent")
+        assert cond == batch.condition[n] and status == batch.status[n] == verdicts.OK
+        K2, *_ = kernel.compliance_one(proto.geometry, x, "consistent")
         np.testing.assert_array_equal(K2, K)
 
 
 def test_streaming_and_out_arrays_equal_batch(proto):
     xs = sample_poses(proto, 70, seed=10)
-    whole = kernel.compliance_batch(proto.params, xs, "paper")
+    whole = kernel.compliance_batch(proto.geometry, xs, "paper")
     seen = 0
-    for start, part in kernel.iter_compliance(proto.params, xs, "paper", chunk=16):
+    for start, part in kernel.iter_compliance(proto.geometry, xs, "paper", chunk=16):
         np.testing.assert_array_equal(part.K, whole.K[start:start + len(part.K)])
         seen += len(part.K)
     assert seen == len(xs)
     parts = (xs[s:s + 30] for s in range(0, len(xs), 30))
-    got = np.concatenate([p.K.copy() for _, p in kernel.iter_compliance(proto.params, parts, "paper", chunk=8)])
+    got = np.concatenate([p.K.copy() for _, p in kernel.iter_compliance(proto.geometry, parts, "paper", chunk=8)])
     np.testing.assert_array_equal(got, whole.K)
     out = kernel._empty(len(xs), False, False)
-    res = kernel.compliance_batch(proto.params, xs, "paper", out)
+    res = kernel.compliance_batch(proto.geometry, xs, "paper", out)
     assert res.K is out.K
     np.testing.assert_array_equal(out.K, whole.K)
 
@@ -131,18 +133,18 @@ def test_streaming_and_out_arrays_equal_batch(proto):
 def test_unreachable_status_matches_inverse_geometry(proto, centre):
     rng = np.random.default_rng(11)
     xs = centre + rng.uniform(-1, 1, (400, 4)) * [0.4, 0.4, 0.4, 0.3]
-    res = kernel.compliance_batch(open_geometry(proto.params), xs)
+    res = kernel.compliance_batch(open_geometry(proto.geometry), xs)
     unreachable = np.any(np.isnan(geometry.inverse_geometry(proto.geometry, xs, on_error="nan", check=False)), axis=1)
     assert 50 < unreachable.sum() < 350
-    np.testing.assert_array_equal(res.status == kernel.UNREACHABLE, unreachable)
-    np.testing.assert_array_equal(res.status[~unreachable], kernel.OK)
+    np.testing.assert_array_equal(res.status == verdicts.UNREACHABLE, unreachable)
+    np.testing.assert_array_equal(res.status[~unreachable], verdicts.OK)
     assert np.all(np.isnan(res.K[unreachable])) and np.all(np.isnan(res.q[unreachable]))
     assert np.all(np.isfinite(res.K[~unreachable]))
 
 
 def test_joint_limit_status(proto, centre):
     """Actuator limits on q (numpy inverse geometry) and lateral limits on omega_k = -theta."""
-    g = writable_geometry(proto.params)
+    g = writable_geometry(proto.geometry)
     rng = np.random.default_rng(12)
     xs = centre + rng.uniform(-1, 1, (300, 4)) * [0.15, 0.15, 0.1, 1.2]
     q = geometry.inverse_geometry(proto.geometry, xs, on_error="nan", check=False)
@@ -153,24 +155,24 @@ def test_joint_limit_status(proto, centre):
     outside = (np.any((q < g.q_lo) | (q > g.q_hi), axis=1) | (-xs[:, 3] < -np.pi / 4) | (-xs[:, 3] > np.pi / 4))
     assert 30 < outside.sum() < len(xs) - 30
     res = kernel.compliance_batch(g, xs)
-    np.testing.assert_array_equal(res.status == kernel.LIMITS, outside)
-    np.testing.assert_array_equal(res.status[~outside], kernel.OK)
+    np.testing.assert_array_equal(res.status == verdicts.LIMITS, outside)
+    np.testing.assert_array_equal(res.status[~outside], verdicts.OK)
     np.testing.assert_allclose(res.q, q, rtol=0, atol=1e-12)  # q is given even outside the limits
 
 
 def test_bar_interpenetration_status(proto, centre):
     """The legs' bars cross when the central bar turns by 1.5 rad; at the centre the closest bar
     axes of two legs (bars 12 and 41) are 120 mm - 2 h = 40 mm apart."""
-    g = open_geometry(proto.params)
+    g = open_geometry(proto.geometry)
     g.bar_clearance = 0.01
     turned = centre + [0, 0, 0, 1.5]
     assert min_bar_distance(proto, turned) < 0.005
     assert min_bar_distance(proto, centre + [0, 0, 0, 1.0]) > 0.015
     res = kernel.compliance_batch(g, np.array([turned, centre + [0, 0, 0, 1.0]]))
-    np.testing.assert_array_equal(res.status, [kernel.BARS, kernel.OK])
+    np.testing.assert_array_equal(res.status, [verdicts.INTERFERENCE, verdicts.OK])
     gap = min_bar_distance(proto, centre)
     assert abs(gap - (0.12 - 2 * proto.params.half_width[0])) < 1e-9
-    for clearance, status in ((gap + 0.002, kernel.BARS), (gap - 0.002, kernel.OK)):
+    for clearance, status in ((gap + 0.002, verdicts.INTERFERENCE), (gap - 0.002, verdicts.OK)):
         g.bar_clearance = clearance
         assert kernel.compliance_batch(g, centre).status[0] == status
 
@@ -179,13 +181,13 @@ def test_symmetric_centre_is_singular(sym):
     x = centre_pose(sym)
     with pytest.raises(SingularPoseError):
         compliance(sym, x, method="closed_form")
-    K, q, cond, status = kernel.prepare(sym.params)(x)
-    assert status == kernel.SINGULAR and not cond < kernel.SINGULAR_CONDITION
+    K, q, cond, status = kernel.prepare(sym.geometry)(x)
+    assert status == verdicts.SINGULAR and not cond < verdicts.SINGULAR_COND
     assert np.all(np.isnan(K))
     np.testing.assert_allclose(q, np.pi / 4, atol=1e-12)
     # 2 cm away it is regular again and the kernel agrees with the reference.
-    K2, _, cond2, status2 = kernel.prepare(sym.params)(x + [0.02, 0.01, 0, 0.1])
-    assert status2 == kernel.OK and cond2 < 1e6
+    K2, _, cond2, status2 = kernel.prepare(sym.geometry)(x + [0.02, 0.01, 0, 0.1])
+    assert status2 == verdicts.OK and cond2 < 1e6
     assert rel(K2, compliance(sym, x + [0.02, 0.01, 0, 0.1]).matrix) < 1e-11
 
 
@@ -194,7 +196,7 @@ def test_condition_is_the_scaled_one_norm_condition_of_m1(proto, poses):
     scale_cols = np.r_[np.ones(3), np.full(5, 1 / np.mean(proto.params.l))]
     scaled = m.M1 / m.l[..., :, None] * scale_cols
     want = np.linalg.cond(scaled, 1)
-    got = kernel.compliance_batch(proto.params, poses).condition
+    got = kernel.compliance_batch(proto.geometry, poses).condition
     np.testing.assert_allclose(got, want, rtol=1e-10)
 
 
@@ -204,10 +206,10 @@ def test_per_element_compliance_equals_unit_load_route(proto, poses, element):
     """K is linear in each spring: doubling c_s adds c_s g_s g_s^T, g_s the load of spring s per
     unit Gamma_ext from the Newton-Euler statics route (consistent model)."""
     attr, index, term = element
-    g = writable_geometry(proto.params)
+    g = writable_geometry(proto.geometry)
     for x in poses[:4]:
         before = kernel.prepare(g)(x, "consistent")[0]
-        g2 = writable_geometry(proto.params)
+        g2 = writable_geometry(proto.geometry)
         getattr(g2, attr)[index] *= 2.0
         after = kernel.prepare(g2)(x, "consistent")[0]
         gs = statics.spring_loads(proto.geometry, x)[term][index]
@@ -219,27 +221,27 @@ def test_per_element_compliance_equals_unit_load_route(proto, poses, element):
 
 
 def test_typed_errors(proto):
-    g = writable_geometry(proto.params)
+    g = writable_geometry(proto.geometry)
     del g.c_tens
     with pytest.raises(ParameterError, match="c_tens"):
         kernel.prepare(g)
-    g = writable_geometry(proto.params)
+    g = writable_geometry(proto.geometry)
     g.A0 = g.A0[:4]
     with pytest.raises(ParameterError, match="A0"):
         kernel.prepare(g)
     with pytest.raises(ParameterError, match="model"):
-        kernel.compliance_batch(proto.params, np.zeros(4), model="exact")
+        kernel.compliance_batch(proto.geometry, np.zeros(4), model="exact")
     with pytest.raises(PoseError):
-        kernel.compliance_batch(proto.params, np.zeros((3, 5)))
+        kernel.compliance_batch(proto.geometry, np.zeros((3, 5)))
     with pytest.raises(ParameterError, match="chunk"):
-        next(kernel.iter_compliance(proto.params, np.zeros((3, 4)), chunk=0))
+        next(kernel.iter_compliance(proto.geometry, np.zeros((3, 4)), chunk=0))
 
 
 def test_compiled_code_is_cached(proto, centre):
     """A fresh interpreter loads the compiled batch kernel from numba's cache (no recompile)."""
-    kernel.compliance_batch(proto.params, centre)  # compiles here if no cache yet, and writes it
-    code = ("import numpy as np; from h4pin import kernel, H4Params;"
-            "kernel.compliance_batch(H4Params(), np.array([0, 0, -0.6, 0.0]));"
+    kernel.compliance_batch(proto.geometry, centre)  # compiles here if no cache yet, and writes it
+    code = ("import numpy as np, h4pin; from h4pin.stiffness import kernel;"
+            "kernel.compliance_batch(h4pin.load().geometry, np.array([0, 0, -0.6, 0.0]));"
             "s = kernel._batch.stats; print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr

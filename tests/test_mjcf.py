@@ -13,8 +13,8 @@ import pinocchio as pin
 import pytest
 
 import h4pin
-from h4pin import mjcf
-from h4pin.table2 import centre_pose
+from h4pin.io import mjcf
+from h4pin.kinematics.closed_form import centre_pose
 
 mujoco = pytest.importorskip("mujoco")
 

@@ -10,11 +10,14 @@ import pinocchio as pin
 import pytest
 
 import h4pin
-from h4pin import H4Params, deformed, geometry, statics
-from h4pin.matrices import from_points
-from h4pin.model import geometry_from_params
+from h4pin import H4Params
+from h4pin.checks import deformed, statics
+from h4pin.description.geometry import geometry_from_params
+from h4pin.kinematics import closed_form as geometry
 from h4pin.robot import variant_path
-from h4pin.stiffness import TERMS, compliance, matrices_at
+from h4pin.stiffness.api import TERMS, compliance, matrices_at
+from h4pin.stiffness.matrices import from_points
+from h4pin.studies.variants import GENERATORS
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -31,7 +34,7 @@ def shifted(text: str, element: str, delta: np.ndarray) -> str:
 
 
 def test_geometry_from_params_equals_reading_the_urdf():
-    for make in h4pin.VARIANTS.values():
+    for make in GENERATORS.values():
         params = make()
         read, built = h4pin.load(params).geometry, geometry_from_params(params)
         for field in ("P", "u", "A0", "l", "lat", "C0", "b", "v", "q_lo", "q_hi", "omega_lo", "omega_hi"):
@@ -153,7 +156,7 @@ def test_toleranced_batch_equals_single(tol, tol_poses):
 
 
 def test_viewer_draws_the_toleranced_robot(tol, tol_poses):
-    from h4pin.deflection import deflected_configuration
+    from h4pin.stiffness.deflection import deflected_configuration
 
     x, force = tol_poses[1], np.array([0.0, 0.0, -10.0])
     q = deflected_configuration(tol, x, force, scale=200.0)

@@ -121,7 +121,7 @@ def test_scripts_work_from_the_unpacked_sdist(unpacked_sdist, tmp_path):
     top = unpacked_sdist
     check = run([str(top / "scripts" / "generate_urdf.py"), "--check"], tmp_path, top)
     assert check.returncode == 0, check.stderr
-    from h4pin.params import VARIANTS
+    from h4pin.description.params import VARIANTS
 
     assert check.stdout.count("up to date: urdf/h4_") == len(VARIANTS) * 2  # URDF + Extended-URDF sidecar
     assert check.stdout.count("up to date: srdf/h4_") == len(VARIANTS)
@@ -153,13 +153,13 @@ def resolve(dotted: str) -> object:
 
 def test_every_cited_h4pin_name_exists():
     """Every ``h4pin.<name>`` the package's docstrings, the scripts, docs/ and the README cite
-    resolves (e.g. ``h4pin.compliance``, which once existed only in ``h4pin.stiffness``)."""
-    sources = [*sorted((ROOT / "h4pin").glob("*.py")), *sorted((ROOT / "scripts").glob("*.py")),
+    resolves (e.g. ``h4pin.compliance``, which once existed only in ``h4pin.stiffness.api``)."""
+    sources = [*sorted((ROOT / "h4pin").rglob("*.py")), *sorted((ROOT / "scripts").glob("*.py")),
                *sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
     cited = set()
     for path in sources:
         cited |= {m.rstrip(".") for m in re.findall(r"\bh4pin\.[A-Za-z_][\w.]*", path.read_text(encoding="utf-8"))}
-    assert {"h4pin.compliance", "h4pin.load", "h4pin.viewer.Scene"} <= cited
+    assert {"h4pin.compliance", "h4pin.load", "h4pin.io.viewer.Scene"} <= cited
     missing = []
     for name in sorted(cited):
         try:

@@ -4,7 +4,7 @@
 The rules, so that the README can be rewritten without touching this file:
 
 * ```` ```python ```` blocks run in order, in one namespace, in a fresh folder (the files they write
-  land there), under umask 077. Afterwards every :class:`h4pin.viewer.Scene` left in the
+  land there), under umask 077. Afterwards every :class:`h4pin.io.viewer.Scene` left in the
   namespace is closed, no process they started may still run, and every file they wrote is
   mode 0644.
 * ```` ```bash ```` blocks: each line is a command; a trailing ``# comment`` documents it. ``&&``
@@ -168,7 +168,7 @@ def test_the_readme_has_what_these_tests_check():
 
 
 def test_python_blocks_run_as_written(tmp_path, monkeypatch, no_process_left):
-    from h4pin import viewer
+    from h4pin.io import viewer
 
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__readme__"}

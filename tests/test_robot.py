@@ -8,7 +8,8 @@ import pinocchio as pin
 import pytest
 
 import h4pin
-from h4pin import ConvergenceError, H4Params, PoseError, SingularPoseError, UnreachablePoseError, geometry
+from h4pin import ConvergenceError, H4Params, PoseError, SingularPoseError, UnreachablePoseError
+from h4pin.kinematics import closed_form as geometry
 
 
 def test_load_sources(proto, tmp_path):

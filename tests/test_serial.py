@@ -7,9 +7,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin import viewer
 from h4pin.errors import ParameterError
-from h4pin.serial import UR5_JOINT_STIFFNESS, serial_compliance
+from h4pin.io import viewer
+from h4pin.studies.serial import UR5_JOINT_STIFFNESS, serial_compliance
 
 erd = pytest.importorskip("example_robot_data")
 

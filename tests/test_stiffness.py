@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 from conftest import sample_poses
 
-from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, deformed, geometry, load, statics
-from h4pin.matrices import from_points
-from h4pin.stiffness import TERMS, compliance, matrices_at
+from h4pin import H4Params, PoseError, SingularPoseError, UnreachablePoseError, load
+from h4pin.checks import deformed, statics
+from h4pin.kinematics import closed_form as geometry
+from h4pin.stiffness.api import TERMS, compliance, matrices_at
+from h4pin.stiffness.matrices import from_points
 
 
 def rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -169,7 +171,7 @@ def test_batch_equals_single_pose(proto):
 def test_singular_pose_is_an_error_with_the_condition_number(sym):
     centre = sym.forward_geometry(np.full(4, np.pi / 4))
     for method in ("pinocchio", "closed_form"):
-        with pytest.raises(SingularPoseError, match=r"cond = \d\.\d+e\+\d+"):
+        with pytest.raises(SingularPoseError, match=r"cond = (\d\.\d+e\+\d+|inf)"):
             compliance(sym, centre, method=method)
 
 
@@ -205,8 +207,8 @@ def test_bad_options(proto, centre):
 
 def test_n_matrix_moves_the_anchors_like_a_forearm_twist(proto, poses):
     """Eq. 22-23: (r/(G I0)) N_i [f_i1, f_i2] is the move of A_i1, A_i2 when forearm i twists
-    under the bar forces (statics route), here against the twisted geometry of h4pin.deformed."""
-    from h4pin.matrices import n_matrix
+    under the bar forces (statics route), here against the twisted geometry of h4pin.checks.deformed."""
+    from h4pin.stiffness.matrices import n_matrix
 
     x = poses[5]
     gamma = np.array([3.0, -1.0, -8.0, 0.2, -0.1, 0.3, 0.05, -0.02])

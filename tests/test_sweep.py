@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 import h4pin
-from h4pin import geometry, sweep
+from h4pin.description.geometry import geometry_from_params
 from h4pin.errors import ParameterError
-from h4pin.matrices import from_points
-from h4pin.model import geometry_from_params
-from h4pin.stiffness import compliance
+from h4pin.kinematics import closed_form as geometry
+from h4pin.stiffness.api import compliance
+from h4pin.stiffness.matrices import from_points
+from h4pin.studies import sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 SPEC = sweep.Spec(n_designs=12, seed=3, chunk=4, task=sweep.Task(half=(0.2, 0.2, 0.1, 0.5), counts=(3, 3, 2, 2)),

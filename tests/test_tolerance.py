@@ -1,18 +1,20 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Tolerance study (h4pin.tolerance): nominal with zero sigmas, single robots against the
+"""Tolerance study (h4pin.studies.tolerance): nominal with zero sigmas, single robots against the
 one-robot routes (stiffness.compliance, forward_geometry on an H4 built for that robot),
 seeded reproducibility, argument errors."""
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 import pytest
 
 import h4pin
-from h4pin import tolerance
+from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
-from h4pin.params import H4Params
-from h4pin.stiffness import compliance
+from h4pin.stiffness.api import compliance
+from h4pin.studies import tolerance
 
 ZERO = {k: 0.0 for k in tolerance.KINDS}
 
@@ -52,20 +54,20 @@ def test_forearm_and_bar_draw_matches_h4params_robot(proto, poses, model):
         assert np.max(np.abs(err)) > 1e-6  # a real error, not a trivial zero
 
 
+def load_geometry(h4, g):
+    """A robot whose geometry is ``g`` (the backends read only ``h4.geometry`` and ``h4.elements``)."""
+    return types.SimpleNamespace(geometry=g, elements=h4.elements)
+
+
 def test_joint_offsets_match_geometry_route(proto, poses):
-    # All kinds at once: robot k as an H4Geometry through h4pin.geometry (solve + forward_state)
-    # and the matrices/eq. 30 of h4pin.stiffness.
-    from h4pin import geometry
-    from h4pin.matrices import from_points
-    from h4pin.stiffness import condition_number, eq30_terms
+    # All kinds at once: robot k alone as an H4Geometry through the numpy backend of compliance()
+    # (solve, then the matrices and eq. 30) and forward_state.
+    from h4pin.kinematics import closed_form as geometry
 
     res = tolerance.study(proto, poses, n_robots=3, seed=3)
     batch = tolerance.sample(proto.geometry, 3, None, seed=3)
     g = tolerance.robot_geometry(proto.geometry, batch, 1)
-    sol = geometry.solve(g, poses, check=False)
-    mats = from_points(g, geometry.points(g, sol.state))
-    inv, _ = condition_number(mats)
-    ref = sum(eq30_terms(inv, mats, g.compliances(), "paper").values())[:, :3, :3]
+    ref = compliance(load_geometry(proto, g), poses, "paper", method="closed_form").translational
     assert np.max(np.abs(res.compliance[1] - ref)) <= 1e-10 * np.max(np.abs(ref))
     q_nom = compliance(proto, poses).q
     for m, x in enumerate(poses):

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from h4pin import statics, toolpoint
-from h4pin.geometry import rot_z
-from h4pin.stiffness import compliance
+from h4pin.checks import statics, toolpoint
+from h4pin.kinematics.closed_form import rot_z
+from h4pin.stiffness.api import compliance
 
 OFFSETS = [  # (measured at p, force at p'), central-bar frame, m
     ([0.1, 0.0, 0.0], None),

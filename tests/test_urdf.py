@@ -14,8 +14,10 @@ import yourdfpy
 
 import h4pin
 from h4pin import H4Params, MalformedURDFError
-from h4pin.params import VARIANTS
-from h4pin.urdf import params_from_urdf, to_urdf, write_urdf
+from h4pin.description.params import VARIANTS
+from h4pin.description.reader import params_from_urdf
+from h4pin.description.urdf import to_urdf, write_urdf
+from h4pin.studies.variants import GENERATORS
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = sorted((ROOT / "urdf").glob("h4_*.urdf"))
@@ -47,7 +49,7 @@ def test_params_round_trip(params):
 
 
 def test_shipped_file_encodes_its_variant():
-    for name, make in VARIANTS.items():
+    for name, make in GENERATORS.items():
         assert h4pin.load(name).params.allclose(make(), atol=1e-15)
 
 
@@ -136,7 +138,7 @@ def test_write_urdf_leaves_no_partial_file(tmp_path):
 
 def test_geometry_in_the_tree_matches_the_parameters(proto, centre):
     """Frame positions at the Pinocchio configuration equal the closed-form points."""
-    from h4pin import geometry
+    from h4pin.kinematics import closed_form as geometry
 
     q = proto.configuration(centre)
     pin.framesForwardKinematics(proto.model, proto.data, q)

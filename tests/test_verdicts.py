@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 import h4pin
-from h4pin import InterferenceError, JointLimitError, SingularPoseError, UnreachablePoseError, statics
-from h4pin.geometry import INTERFERENCE, LIMITS, OK, SINGULAR, UNREACHABLE
-from h4pin.stiffness import SINGULAR_COND, compliance
-from h4pin.table2 import centre_pose
+from h4pin import InterferenceError, JointLimitError, SingularPoseError, UnreachablePoseError
+from h4pin.checks import statics
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.stiffness.api import SINGULAR_COND, compliance
+from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, UNREACHABLE
 
 ERRORS = {UNREACHABLE: UnreachablePoseError, LIMITS: JointLimitError, INTERFERENCE: InterferenceError,
           SINGULAR: SingularPoseError}
@@ -98,7 +99,7 @@ def test_poses_the_robot_cannot_take_are_refused_with_the_reason(proto, pose, er
 def test_interfering_bars_are_refused(proto):
     """Bars of legs 1 and 2 cross when the plate swings far to -x, -y: the verdict names them and
     the distance, and equals a direct computation of the segment distances."""
-    from h4pin.geometry import points, rigid_state, segment_distances
+    from h4pin.kinematics.closed_form import points, rigid_state, segment_distances
 
     c = centre_pose(proto)
     rng = np.random.default_rng(3)

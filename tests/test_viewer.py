@@ -22,9 +22,9 @@ import pinocchio as pin
 import pytest
 from conftest import tagged_processes
 
-from h4pin import viewer
-from h4pin.deflection import deflected_configuration
-from h4pin.stiffness import compliance
+from h4pin.io import viewer
+from h4pin.stiffness.api import compliance
+from h4pin.stiffness.deflection import deflected_configuration
 
 ROOT = Path(__file__).resolve().parent.parent
 needs_chromium = pytest.mark.skipif(shutil.which("chromium") is None,
@@ -114,7 +114,7 @@ def test_deflection_refuses_bad_loads(proto, centre, bad):
     """A NaN, infinite, wrongly sized or non-numeric load is a LoadError (an H4Error and a
     ValueError) naming the load, from deflection and deflected_configuration alike."""
     from h4pin import H4Error, LoadError
-    from h4pin.deflection import deflection
+    from h4pin.stiffness.deflection import deflection
 
     for call in (lambda: deflection(proto, centre, bad), lambda: deflected_configuration(proto, centre, bad)):
         with pytest.raises(LoadError, match="load") as info:
@@ -283,7 +283,7 @@ def start_view(*args: str) -> tuple[subprocess.Popen, int]:
     while "meshcat: http" not in line and time.monotonic() < deadline and proc.poll() is None:
         line = proc.stdout.readline()
     assert "meshcat: http" in line, proc.stderr.read() if proc.poll() is not None else "no URL printed"
-    servers = [pid for pid, cmd in children(proc.pid).items() if "h4pin.meshcat_server" in cmd]
+    servers = [pid for pid, cmd in children(proc.pid).items() if "h4pin.io.meshcat_server" in cmd]
     assert len(servers) == 1, children(proc.pid)
     return proc, servers[0]
 

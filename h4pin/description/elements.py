@@ -1,0 +1,155 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Data of the compliant elements that eq. 30 neglects (all off by default): the schema.
+
+Elements (SI, one value per element; 0 switches a compliance off, ``inf`` a rigidity):
+
+* ``revolute_radial`` (2,) m/N: each lateral-bar revolute joint C_k, in the plane normal to its
+  axis v_k; ``revolute_axial`` (2,) m/N along v_k; ``revolute_tilt`` (2,) rad/(N.m) about the two
+  axes normal to v_k;
+* ``ball_radial`` (8,) m/N: each ball joint of bar ij (both ends), along the bar;
+* ``central_EI``, ``central_GJ`` (2,) N.m^2: bending and torsion of the central bar's segment
+  D-C_k; ``lateral_EI``, ``lateral_GJ`` (4,) N.m^2: the same for lateral bar k's arm C_k-B_i;
+* ``shaft_tilt`` (4,) rad/(N.m): actuator i's shaft and bearings;
+* ``base_translation`` (4,) m/N, ``base_rotation`` (4,) rad/(N.m): actuator i's mount on the base.
+
+The data sit in the URDF next to their element (:mod:`h4pin.description.urdf`) and
+:func:`h4pin.load` reads them into :attr:`H4.elements <h4pin.H4>`; :func:`h4pin.compliance` adds a
+named term per element kind that is on (:mod:`h4pin.stiffness.elements`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from h4pin.errors import ParameterError
+
+ELEMENTS = ("revolute_radial", "revolute_axial", "revolute_tilt", "ball_radial", "central_EI", "central_GJ",
+            "lateral_EI", "lateral_GJ", "shaft_tilt", "base_translation", "base_rotation")
+#: Number of elements of each kind: per lateral revolute joint or central-bar segment D-C_k (2),
+#: per leg (4: lateral arm C_k-B_i, actuator shaft, base mount) or per bar (8).
+COUNTS = {"revolute_radial": 2, "revolute_axial": 2, "revolute_tilt": 2, "ball_radial": 8, "central_EI": 2,
+          "central_GJ": 2, "lateral_EI": 4, "lateral_GJ": 4, "shaft_tilt": 4, "base_translation": 4,
+          "base_rotation": 4}
+#: Kinds given as a stiffness (N.m^2): > 0, ``inf`` (the default) is rigid, i.e. off. The others
+#: are compliances: >= 0, 0 (the default) is off.
+RIGIDITIES = ("central_EI", "central_GJ", "lateral_EI", "lateral_GJ")
+UNITS = {"revolute_radial": "m/N", "revolute_axial": "m/N", "revolute_tilt": "rad/(N.m)", "ball_radial": "m/N",
+         "central_EI": "N.m^2", "central_GJ": "N.m^2", "lateral_EI": "N.m^2", "lateral_GJ": "N.m^2",
+         "shaft_tilt": "rad/(N.m)", "base_translation": "m/N", "base_rotation": "rad/(N.m)"}
+
+
+def element_name(name: str, index: int) -> str:
+    """Human name of element ``index`` of kind ``name`` (1-based joint, segment, leg or bar)."""
+    if name.startswith("revolute"):
+        return f"revolute joint of lateral bar {index + 1}"
+    if name.startswith("central"):
+        return f"central-bar segment D-C_{index + 1}"
+    if name.startswith("lateral"):
+        return f"lateral-bar arm to B_{index + 1}"
+    if name == "shaft_tilt":
+        return f"actuator shaft of leg {index + 1}"
+    if name.startswith("base"):
+        return f"base mount of actuator {index + 1}"
+    return f"ball joints of bar {index // 2 + 1}{index % 2 + 1}"
+
+
+def is_on(name: str, value: np.ndarray) -> bool:
+    """True when some element of kind ``name`` with data ``value`` is not rigid."""
+    return bool(np.any(np.isfinite(value))) if name in RIGIDITIES else bool(np.any(value))
+
+
+def check_elements(values: dict[str, Any], error: type[Exception] = ParameterError, where: str = "",
+                   owners: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
+    """Element data as float arrays (scalars broadcast to :data:`COUNTS`): compliances finite and
+    >= 0, rigidities (:data:`RIGIDITIES`) > 0 (``inf``: rigid); otherwise ``error`` naming the
+    element (and ``owners[name][index]``)."""
+    out = {}
+    prefix = f"{where}: " if where else ""
+    for name in ELEMENTS:
+        rigidity = name in RIGIDITIES
+        raw = values.get(name, np.inf if rigidity else 0.0)
+        n = COUNTS[name]
+        try:
+            arr = np.array(raw, dtype=float)
+            arr = np.broadcast_to(arr, (n,)).copy()
+        except (TypeError, ValueError):
+            raise error(f"{prefix}{name} must be a real number or {n} of them, got {raw!r}") from None
+        bad = np.isnan(arr) | (arr <= 0.0) if rigidity else ~np.isfinite(arr) | (arr < 0.0)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            owner = owners[name][k] if owners else element_name(name, k)
+            rule = "> 0; inf switches it off" if rigidity else "finite and >= 0; 0 switches it off"
+            raise error(f"{prefix}{owner}: {name} = {arr[k]!r} is not physical (must be {rule})")
+        arr.setflags(write=False)
+        out[name] = arr
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Elements:
+    """Data of the neglected elements, SI, per element (all off by default).
+
+    Each field accepts a scalar (every element of that kind) or one value per element:
+
+    * ``revolute_radial``, ``revolute_axial`` (m/N), ``revolute_tilt`` (rad/(N.m)), (2,): the
+      lateral bars' revolute joints k = 1, 2; ``ball_radial`` (8,) m/N: the ball joints of bars
+      11, 12, ..., 42 (each bar's two ball joints have that compliance). 0: off.
+    * ``central_EI``, ``central_GJ`` (2,) N.m^2: bending and torsion rigidity of the central bar's
+      segment from D to C_k; ``lateral_EI``, ``lateral_GJ`` (4,) N.m^2: the same for the arm of a
+      lateral bar from C_k to B_i (leg i). ``inf``: rigid (off).
+    * ``shaft_tilt`` (4,) rad/(N.m): actuator i's shaft and bearings, the forearm root at P_i
+      turning about the two axes normal to u_i. 0: off.
+    * ``base_translation`` (4,) m/N and ``base_rotation`` (4,) rad/(N.m): actuator i's mount on
+      the base, an isotropic 6-D spring at P_i. 0: off.
+    """
+
+    revolute_radial: Any = 0.0
+    revolute_axial: Any = 0.0
+    revolute_tilt: Any = 0.0
+    ball_radial: Any = 0.0
+    central_EI: Any = np.inf
+    central_GJ: Any = np.inf
+    lateral_EI: Any = np.inf
+    lateral_GJ: Any = np.inf
+    shaft_tilt: Any = 0.0
+    base_translation: Any = 0.0
+    base_rotation: Any = 0.0
+
+    def __post_init__(self) -> None:
+        checked = check_elements({n: getattr(self, n) for n in ELEMENTS})
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "_on", frozenset(n for n in ELEMENTS if is_on(n, checked[n])))
+
+    def on(self, name: str) -> bool:
+        """True when some element of kind ``name`` is switched on."""
+        return name in self._on
+
+    @property
+    def off(self) -> bool:
+        """True when every element is switched off (eq. 30 as it is)."""
+        return not self._on
+
+    def allclose(self, other: Elements, rtol: float = 1e-15) -> bool:
+        """Every element equal to ``other``'s within ``rtol`` (relative; ``inf`` equals ``inf``)."""
+        return all(np.allclose(getattr(self, n), getattr(other, n), rtol=rtol, atol=0.0) for n in ELEMENTS)
+
+
+#: Plate rods of the generated URDF: solid aluminium rounds of radius 8 mm (E = 70 GPa,
+#: G = 26 GPa): EI = E pi r^4 / 4, GJ = G pi r^4 / 2.
+_ROD_I = np.pi * 8e-3**4 / 4.0
+#: Orders of magnitude for a report, not data of the prototype: a pair of deep-groove bearings
+#: (radial/axial ~1e8 N/m, tilt ~2e4 N.m/rad with 20 mm between them), a 10 mm ball joint ~5e7 N/m;
+#: the plate's bars as the URDF's 8 mm aluminium rods (EI 225 N.m^2, GJ 167 N.m^2); the actuator
+#: shaft on two bearings of ~1e8 N/m 30 mm apart (k s^2 / 2 = 4.5e4 N.m/rad: 2e-5 rad/(N.m)); a
+#: motor bolted to an aluminium frame through a ~10 mm bracket (1e8 N/m, 1e5 N.m/rad).
+ILLUSTRATIVE = Elements(revolute_radial=1e-8, revolute_axial=1e-8, revolute_tilt=5e-5, ball_radial=2e-8,
+                        central_EI=70e9 * _ROD_I, central_GJ=26e9 * 2 * _ROD_I, lateral_EI=70e9 * _ROD_I,
+                        lateral_GJ=26e9 * 2 * _ROD_I, shaft_tilt=2e-5, base_translation=1e-8, base_rotation=1e-5)
+
+
+__all__ = ["COUNTS", "ELEMENTS", "ILLUSTRATIVE", "RIGIDITIES", "UNITS", "Elements", "check_elements", "element_name",
+           "is_on"]

@@ -1,0 +1,469 @@
+# SPDX-License-Identifier: Apache-2.0
+"""H4 URDF: writer of nominal robots, and reader of the custom elements of any H4 URDF.
+
+:func:`to_urdf` writes the kinematic tree of an H4 described by :class:`h4pin.H4Params` as plain
+URDF, plus custom elements that make one file a complete model (Pinocchio and yourdfpy accept and
+ignore them; h4pin reads them with an XML parser, :func:`parse`):
+
+* eight ``<constraint type="point">`` elements, one per bar, closing bar ``ij`` on its lateral
+  bar at ``B_ij``. Their form (``<parent link>``, ``<parent_origin>``, ``<child link>``,
+  ``<child_origin>``) follows the ``<constraint>`` element proposed to ROS urdfdom;
+* spring data next to the element it belongs to: ``<h4_actuator kc=.../>`` inside each actuated
+  ``<joint>``, ``<h4_forearm E= I= G= I0= stressed_fraction=/>`` inside each forearm ``<link>``,
+  ``<h4_bar Sb= Eb=/>`` inside each bar ``<link>``. Editing a joint, or copying a leg, takes its
+  data along, and a tree cannot disagree with a table kept elsewhere;
+* optional data of the elements eq. 30 neglects (:mod:`h4pin.description.elements`, off when absent):
+  ``<h4_revolute radial= axial= tilt=/>`` inside each lateral revolute ``<joint>``,
+  ``<h4_ball radial=/>`` inside each bar ``<link>`` (both ball joints of the bar),
+  ``<h4_plate_bar EI_n= GJ_n=/>`` inside the central bar's ``<link>`` (segment D-C_n) and each
+  lateral bar's ``<link>`` (arm C_k-B_n of leg n), ``shaft_tilt=`` on ``<h4_actuator>`` and
+  ``<h4_base translation= rotation=/>`` inside each actuated ``<joint>``;
+* ``<h4pin format="2" units="SI"/>``: the version of these conventions and the units.
+
+Geometry is never read from a side element: :func:`h4pin.load` takes every length and position
+from the tree and the closures (:mod:`h4pin.description.geometry`).
+
+The tree written here (reference configuration: all joint angles zero, world-aligned frames):
+
+* ``base_link`` with the actuators drawn at ``P_i``;
+* per leg i: revolute ``actuator_i`` (axis u_i at P_i) -> ``forearm_i`` (along a_i = u_i x z,
+  length r_i); per bar ij a universal joint made of two revolutes ``bar_ij_u1`` (axis u_i) and
+  ``bar_ij_u2`` (axis a_i) at A_ij -> ``bar_ij``, hanging along -z with its end at (0, 0, -l_ij).
+  (Pinocchio's URDF parser has no ball joint; the spin of a bar about its axis is idle.)
+* the travelling plate as a floating subtree: ``floating`` joint ``plate`` -> ``central_bar``
+  (origin D), and revolute-z joints ``lateral_k`` at C_k -> ``lateral_bar_k``.
+* named frames (massless links on fixed joints): P_i, A_i, A_ij, B_i, B_ij, C_k, D, bar_ij_end.
+
+Materials for the inertias (stated, not in the paper): forearms are aluminium (2700 kg/m^3)
+solid rods whose radius gives the paper's I; bars are carbon-fibre tubes (1600 kg/m^3) of
+section Sb; the plate is aluminium rods; each universal-joint cross is a 20 g steel part.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from h4pin.description.geometry import ACTUATOR_LIMITS, LATERAL_LIMITS
+from h4pin.description.params import LEG_LATERAL, H4Params
+from h4pin.errors import MalformedURDFError
+from h4pin.files import write_text
+
+if TYPE_CHECKING:
+    from h4pin.description.elements import Elements
+
+FORMAT_VERSION = "2"
+RHO_ALUMINIUM = 2700.0  # kg/m^3
+RHO_CARBON = 1600.0  # kg/m^3
+CROSS_MASS = 0.02  # kg
+BAR_RADIUS = 5e-3  # m, outer radius of the bar tubes (drawing and inertia)
+PLATE_RADIUS = 8e-3  # m, radius of the plate rods (drawing and inertia)
+
+
+def leg_names(i: int) -> dict[str, str]:
+    """URDF names for leg ``i`` (1-based)."""
+    return {"joint": f"actuator_{i}", "forearm": f"forearm_{i}", "P": f"P_{i}", "A": f"A_{i}", "B": f"B_{i}"}
+
+
+def bar_names(i: int, j: int) -> dict[str, str]:
+    """URDF names for bar ``ij`` (1-based)."""
+    s = f"{i}{j}"
+    return {
+        "u1": f"bar_{s}_u1",
+        "u2": f"bar_{s}_u2",
+        "cross": f"bar_{s}_cross",
+        "bar": f"bar_{s}",
+        "end": f"bar_{s}_end",
+        "A": f"A_{s}",
+        "B": f"B_{s}",
+        "closure": f"closure_{s}",
+    }
+
+
+def lateral_names(k: int) -> dict[str, str]:
+    """URDF names for lateral bar ``k`` (1-based)."""
+    return {"joint": f"lateral_{k}", "link": f"lateral_bar_{k}", "C": f"C_{k}"}
+
+
+def _num(x: float) -> str:
+    x = float(x)
+    return "0" if x == 0.0 else repr(x)
+
+
+def _vec(v: np.ndarray) -> str:
+    return " ".join(_num(c) for c in v)
+
+
+def _rpy_z_to(d: np.ndarray) -> np.ndarray:
+    """Roll-pitch-yaw of a rotation taking +z to the unit vector ``d`` (for cylinders)."""
+    d = d / np.linalg.norm(d)
+    pitch = np.arccos(np.clip(d[2], -1.0, 1.0))
+    yaw = np.arctan2(d[1], d[0]) if np.hypot(d[0], d[1]) > 1e-12 else 0.0
+    return np.array([0.0, pitch, yaw])
+
+
+class _Body:
+    """Collects the primitive shapes of one link and computes its inertial."""
+
+    def __init__(self) -> None:
+        self.shapes: list[tuple[str, np.ndarray, np.ndarray, str]] = []
+        self.masses: list[tuple[float, np.ndarray, np.ndarray]] = []  # mass, com, inertia at com
+
+    def rod(self, a: np.ndarray, b: np.ndarray, radius: float, rho: float, hollow: float = 0.0) -> None:
+        """A cylinder from a to b; ``hollow`` is the inner radius (0: solid)."""
+        d = np.asarray(b, float) - np.asarray(a, float)
+        length = float(np.linalg.norm(d))
+        if length < 1e-9:
+            return
+        u = d / length
+        mid = (np.asarray(a) + np.asarray(b)) / 2
+        self.shapes.append(("cylinder", mid, _rpy_z_to(u), f'radius="{_num(radius)}" length="{_num(length)}"'))
+        m = rho * np.pi * (radius**2 - hollow**2) * length
+        axial = 0.5 * m * (radius**2 + hollow**2)
+        perp = m * (3 * (radius**2 + hollow**2) + length**2) / 12
+        self.masses.append((m, mid, perp * (np.eye(3) - np.outer(u, u)) + axial * np.outer(u, u)))
+
+    def ball(self, c: np.ndarray, radius: float, mass: float = 0.0) -> None:
+        self.shapes.append(("sphere", np.asarray(c, float), np.zeros(3), f'radius="{_num(radius)}"'))
+        if mass > 0:
+            self.masses.append((mass, np.asarray(c, float), 0.4 * mass * radius**2 * np.eye(3)))
+
+    def xml(self, name: str, material: str, extra: str = "") -> str:
+        out = [f'  <link name="{name}">']
+        if extra:
+            out.append(f"    {extra}")
+        if self.masses:
+            m = sum(mi for mi, _, _ in self.masses)
+            com = sum(mi * ci for mi, ci, _ in self.masses) / m
+            inertia = sum(
+                ii + mi * (np.dot(ci - com, ci - com) * np.eye(3) - np.outer(ci - com, ci - com))
+                for mi, ci, ii in self.masses
+            )
+            ixx, ixy, ixz = inertia[0]
+            iyy, iyz, izz = inertia[1, 1], inertia[1, 2], inertia[2, 2]
+            out += [
+                "    <inertial>",
+                f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
+                f'      <mass value="{_num(m)}"/>',
+                f'      <inertia ixx="{_num(ixx)}" ixy="{_num(ixy)}" ixz="{_num(ixz)}" '
+                f'iyy="{_num(iyy)}" iyz="{_num(iyz)}" izz="{_num(izz)}"/>',
+                "    </inertial>",
+            ]
+        for kind in ("visual", "collision"):
+            for shape, xyz, rpy, attrs in self.shapes:
+                out += [
+                    f"    <{kind}>",
+                    f'      <origin xyz="{_vec(xyz)}" rpy="{_vec(rpy)}"/>',
+                    f"      <geometry><{shape} {attrs}/></geometry>",
+                ]
+                if kind == "visual":
+                    out.append(f'      <material name="{material}"/>')
+                out.append(f"    </{kind}>")
+        out.append("  </link>")
+        return "\n".join(out)
+
+
+def _joint(name: str, kind: str, parent: str, child: str, xyz: np.ndarray, axis: np.ndarray | None = None,
+           limits: tuple[float, float] | None = None, extra: str = "") -> str:
+    out = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
+           f'    <origin xyz="{_vec(xyz)}" rpy="0 0 0"/>']
+    if axis is not None:
+        out.append(f'    <axis xyz="{_vec(axis)}"/>')
+    if limits is not None:
+        out.append(f'    <limit lower="{_num(limits[0])}" upper="{_num(limits[1])}" effort="1000" velocity="20"/>')
+    if extra:
+        out.append(f"    {extra}")
+    out.append("  </joint>")
+    return "\n".join(out)
+
+
+def _frame(name: str, parent: str, xyz: np.ndarray) -> str:
+    """A named frame: a massless link on a fixed joint."""
+    return f'  <link name="{name}"/>\n' + _joint(f"{name}_frame", "fixed", parent, name, xyz)
+
+
+def _plate_bar(elements: Elements | None, family: str, indices: Any) -> str:
+    """``<h4_plate_bar EI_n= GJ_n=/>`` of the beams ``indices`` (0-based; n = index + 1) of a plate
+    link that are not rigid; empty when none is."""
+    if elements is None:
+        return ""
+    attrs = [f'{q}_{n + 1}="{_num(getattr(elements, f"{family}_{q}")[n])}"' for n in indices for q in ("EI", "GJ")
+             if np.isfinite(getattr(elements, f"{family}_{q}")[n])]
+    return f"<h4_plate_bar {' '.join(attrs)}/>" if attrs else ""
+
+
+def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None) -> str:
+    """URDF text of the H4 described by ``params`` (see the module docstring for its layout).
+
+    ``elements``: data of the neglected elements (:class:`h4pin.description.elements.Elements`) to write
+    inline (``<h4_revolute>`` in the lateral joints, ``<h4_ball>`` in the bar links); none by
+    default. The text is deterministic: the same parameters always give the same bytes.
+    """
+    p = params
+    a = p.forearm_dirs.T
+    u = p.U.T
+    signs = (1.0, -1.0)
+    bar_inner = np.sqrt(np.maximum(BAR_RADIUS**2 - p.Sb / np.pi, 0.0))
+    parts: list[str] = []
+
+    base = _Body()
+    for i in range(4):
+        base.rod(p.P[:, i] - 0.04 * u[i], p.P[:, i] + 0.04 * u[i], 0.05, RHO_ALUMINIUM)
+    parts.append(base.xml("base_link", "frame"))
+    for i in range(4):
+        n = leg_names(i + 1)
+        h, r = p.half_width[i], p.r[i]
+        forearm_radius = (4.0 * p.I[i] / np.pi) ** 0.25  # solid round section with second moment I
+        parts.append(_frame(n["P"], "base_link", p.P[:, i]))
+        forearm = _Body()
+        forearm.rod(np.zeros(3), r * a[i], forearm_radius, RHO_ALUMINIUM)
+        forearm.rod(r * a[i] - h * u[i], r * a[i] + h * u[i], forearm_radius * 0.6, RHO_ALUMINIUM)
+        for s in signs:
+            forearm.ball(r * a[i] + s * h * u[i], p.ball_radius)
+        spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
+                  f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"/>')
+        parts.append(forearm.xml(n["forearm"], "forearm", spring))
+        actuator = f'<h4_actuator kc="{_num(p.kc[i])}"/>'
+        if elements is not None:
+            actuator = (f'<h4_actuator kc="{_num(p.kc[i])}" shaft_tilt="{_num(elements.shaft_tilt[i])}"/>\n    '
+                        f'<h4_base translation="{_num(elements.base_translation[i])}" '
+                        f'rotation="{_num(elements.base_rotation[i])}"/>')
+        parts.append(_joint(n["joint"], "revolute", "base_link", n["forearm"], p.P[:, i], u[i], ACTUATOR_LIMITS,
+                            actuator))
+        parts.append(_frame(n["A"], n["forearm"], r * a[i]))
+        for j, s in enumerate(signs):
+            b = bar_names(i + 1, j + 1)
+            nb = 2 * i + j
+            anchor = r * a[i] + s * h * u[i]
+            parts.append(_frame(b["A"], n["forearm"], anchor))
+            cross = _Body()
+            cross.ball(np.zeros(3), p.ball_radius * 0.5, CROSS_MASS)
+            parts.append(cross.xml(b["cross"], "joint"))
+            parts.append(_joint(b["u1"], "revolute", n["forearm"], b["cross"], anchor, u[i], (-np.pi, np.pi)))
+            bar = _Body()
+            bar.rod(np.zeros(3), np.array([0.0, 0.0, -p.l[nb]]), BAR_RADIUS, RHO_CARBON, bar_inner[nb])
+            bar_data = f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'
+            if elements is not None:
+                bar_data += f'\n    <h4_ball radial="{_num(elements.ball_radial[nb])}"/>'
+            parts.append(bar.xml(b["bar"], "bar", bar_data))
+            parts.append(_joint(b["u2"], "revolute", b["cross"], b["bar"], np.zeros(3), a[i], (-np.pi, np.pi)))
+            parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l[nb]])))
+
+    central = _Body()
+    central.rod(p.DC[:, 0], p.DC[:, 1], PLATE_RADIUS, RHO_ALUMINIUM)
+    central.rod(np.zeros(3), p.DC.mean(axis=1), PLATE_RADIUS, RHO_ALUMINIUM)
+    central.ball(np.zeros(3), 1.5 * PLATE_RADIUS)
+    parts.append(central.xml("central_bar", "plate", _plate_bar(elements, "central", range(2))))
+    parts.append(_joint("plate", "floating", "base_link", "central_bar", np.zeros(3)))
+    parts.append(_frame("D", "central_bar", np.zeros(3)))
+    bij = p.plate_ball_centres()
+    for k in range(2):
+        n = lateral_names(k + 1)
+        lateral = _Body()
+        for i in np.flatnonzero(LEG_LATERAL == k):
+            lateral.rod(np.zeros(3), p.DB[:, i] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
+            lateral.rod(bij[i, 0] - p.DC[:, k], bij[i, 1] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
+            for j in range(2):
+                lateral.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
+        parts.append(lateral.xml(n["link"], "plate", _plate_bar(elements, "lateral", np.flatnonzero(LEG_LATERAL == k))))
+        joint_data = "" if elements is None else (
+            f'<h4_revolute radial="{_num(elements.revolute_radial[k])}" axial="{_num(elements.revolute_axial[k])}" '
+            f'tilt="{_num(elements.revolute_tilt[k])}"/>')
+        parts.append(_joint(n["joint"], "revolute", "central_bar", n["link"], p.DC[:, k], np.array([0.0, 0.0, 1.0]),
+                            LATERAL_LIMITS, joint_data))
+        parts.append(_frame(n["C"], n["link"], np.zeros(3)))
+        for i in np.flatnonzero(LEG_LATERAL == k):
+            parts.append(_frame(leg_names(i + 1)["B"], n["link"], p.DB[:, i] - p.DC[:, k]))
+            for j in range(2):
+                parts.append(_frame(bar_names(i + 1, j + 1)["B"], n["link"], bij[i, j] - p.DC[:, k]))
+
+    closures = []
+    for i in range(4):
+        k = LEG_LATERAL[i]
+        for j in range(2):
+            b = bar_names(i + 1, j + 1)
+            closures.append(
+                f'  <constraint name="{b["closure"]}" type="point">\n'
+                f'    <parent link="{b["bar"]}"/>\n'
+                f'    <parent_origin xyz="0 0 {_num(-p.l[2 * i + j])}"/>\n'
+                f'    <child link="{lateral_names(k + 1)["link"]}"/>\n'
+                f'    <child_origin xyz="{_vec(bij[i, j] - p.DC[:, k])}"/>\n'
+                "  </constraint>"
+            )
+
+    materials = {"frame": "0.35 0.37 0.40 1", "forearm": "0.80 0.45 0.15 1", "bar": "0.15 0.15 0.17 1",
+                 "joint": "0.6 0.6 0.6 1", "plate": "0.20 0.45 0.80 1"}
+    header = [
+        '<?xml version="1.0"?>',
+        f"<!-- H4 parallel robot '{name}', written by h4pin.description.urdf.to_urdf "
+        "(edit freely: the file is the model). -->",
+        f'<robot name="{name}">',
+        *(f'  <material name="{m}"><color rgba="{c}"/></material>' for m, c in materials.items()),
+    ]
+    marker = f'  <h4pin format="{FORMAT_VERSION}" units="SI"/>'
+    return "\n".join([*header, marker, *parts, *closures, "</robot>", ""])
+
+
+#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field, or the
+#: :class:`h4pin.description.elements.Elements` field for the optional elements h4_revolute, h4_ball).
+SPRING_ELEMENTS = {
+    "h4_actuator": ("joint", {"kc": "kc"}),
+    "h4_forearm": ("link", {"E": "E", "I": "I", "G": "G", "I0": "I0",
+                            "stressed_fraction": "forearm_stressed_fraction"}),
+    "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
+    "h4_revolute": ("joint", {"radial": "revolute_radial", "axial": "revolute_axial", "tilt": "revolute_tilt"}),
+    "h4_ball": ("link", {"radial": "ball_radial"}),
+    "h4_base": ("joint", {"translation": "base_translation", "rotation": "base_rotation"}),
+    "h4_plate_bar": ("link", {f"{q}_{n}": f"plate_{q}_{n}" for q in ("EI", "GJ") for n in range(1, 5)}),
+}
+#: Optional attribute of ``<h4_actuator>`` (the shaft's tilt compliance, :mod:`h4pin.description.elements`).
+SPRING_ELEMENTS["h4_actuator"][1]["shaft_tilt"] = "shaft_tilt"
+
+
+@dataclasses.dataclass(frozen=True)
+class Closure:
+    """One ``<constraint type="point">``: the point ``parent_xyz`` of link ``parent`` coincides
+    with the point ``child_xyz`` of link ``child`` (each in its link's frame, m)."""
+
+    name: str
+    parent: str
+    parent_xyz: np.ndarray
+    child: str
+    child_xyz: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class URDFExtras:
+    """What h4pin reads from the custom elements of an H4 URDF (:func:`parse`).
+
+    Attributes:
+        closures: the ``<constraint>`` elements, in file order.
+        springs: ``{element name: {field: value}}`` for joints (kc; the optional revolute
+            element data) and links (forearm, bar data; the optional ball-joint data).
+        joint_child: ``{joint name: child link name}``.
+    """
+
+    closures: list[Closure]
+    springs: dict[str, dict[str, float]]
+    joint_child: dict[str, str]
+
+
+def decode(data: bytes, where: str) -> str:
+    """URDF bytes as text; binary or non-UTF-8 content is a :class:`MalformedURDFError`."""
+    if b"\0" in data:
+        raise MalformedURDFError(f"{where}: a binary file, not a URDF (XML text)")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MalformedURDFError(f"{where}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def _parse(text: str, where: str) -> ET.Element:
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise MalformedURDFError(f"{where}: not well-formed XML ({exc})") from None
+    if root.tag != "robot":
+        raise MalformedURDFError(f"{where}: the root element is <{root.tag}>, not <robot>")
+    return root
+
+
+def _attr(elem: ET.Element | None, key: str, where: str, what: str) -> str:
+    if elem is None or elem.get(key) is None:
+        raise MalformedURDFError(f"{where}: {what} is missing attribute '{key}'")
+    return elem.get(key)  # type: ignore[return-value]
+
+
+def _floats(text: str, n: int, where: str, what: str) -> np.ndarray:
+    try:
+        v = np.array([float(t) for t in text.split()])
+    except ValueError:
+        raise MalformedURDFError(f"{where}: {what} = {text!r} is not a list of numbers") from None
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise MalformedURDFError(f"{where}: {what} = {text!r} must be {n} finite numbers")
+    return v
+
+
+def parse(text: str, where: str = "URDF") -> URDFExtras:
+    """Read and check the custom elements of an H4 URDF: closures, spring data, format.
+
+    Raises:
+        MalformedURDFError: naming ``where`` and the element: not XML, not a ``<robot>``, an
+            ``<h4pin>`` marker with another format or units than SI, a closure that is not of
+            type ``point``, duplicated closure names, a spring datum that is not a number.
+    """
+    root = _parse(text, where)
+    if root.find("h4_parameters") is not None:
+        raise MalformedURDFError(f"{where}: <h4_parameters> is h4pin's format 1, which kept the geometry beside "
+                                 "the tree; regenerate the file (h4pin.description.urdf.write_urdf or "
+                                 "scripts/generate_urdf.py)")
+    for marker in root.findall("h4pin"):
+        if marker.get("format", FORMAT_VERSION) != FORMAT_VERSION:
+            raise MalformedURDFError(f"{where}: <h4pin format=\"{marker.get('format')}\"> is unknown; this h4pin "
+                                     f"reads format {FORMAT_VERSION}")
+        if marker.get("units", "SI") != "SI":
+            raise MalformedURDFError(f"{where}: <h4pin units=\"{marker.get('units')}\">: only SI (m, N, Pa) is "
+                                     "supported")
+    closures, names = [], set()
+    for c in root.findall("constraint"):
+        name = _attr(c, "name", where, "a <constraint>")
+        if c.get("type") != "point":
+            raise MalformedURDFError(f"{where}: <constraint name=\"{name}\"> has type {c.get('type')!r}; the H4's "
+                                     "closures are 3-D point constraints (type=\"point\")")
+        if name in names:
+            raise MalformedURDFError(f"{where}: two <constraint> elements are named '{name}'")
+        names.add(name)
+        sides = []
+        for side in ("parent", "child"):
+            link = _attr(c.find(side), "link", where, f"<{side}> of closure '{name}'")
+            origin = c.find(f"{side}_origin")
+            xyz = np.zeros(3) if origin is None else _floats(origin.get("xyz", "0 0 0"), 3, where,
+                                                              f"<{side}_origin> of closure '{name}'")
+            sides += [link, xyz]
+        closures.append(Closure(name, *sides))
+    springs: dict[str, dict[str, float]] = {}
+    for tag, (kind, fields) in SPRING_ELEMENTS.items():
+        other = "link" if kind == "joint" else "joint"
+        for elem in root.findall(other):
+            if elem.find(tag) is not None:
+                raise MalformedURDFError(f"{where}: <{tag}> sits in {other} '{elem.get('name')}'; it belongs inside "
+                                         f"a <{kind}>")
+        for elem in root.findall(kind):
+            found = elem.findall(tag)
+            if not found:
+                continue
+            owner = _attr(elem, "name", where, f"a <{kind}>")
+            if len(found) > 1:
+                raise MalformedURDFError(f"{where}: {kind} '{owner}' has {len(found)} <{tag}> elements")
+            data = springs.setdefault(owner, {})
+            for key, field in fields.items():
+                raw = found[0].get(key)
+                if raw is None:
+                    continue
+                data[field] = float(_floats(raw, 1, where, f"<{tag} {key}> of {kind} '{owner}'")[0])
+    joint_child = {}
+    for j in root.findall("joint"):
+        child = j.find("child")
+        if child is not None and j.get("name") is not None:
+            joint_child[j.get("name")] = child.get("link")
+    return URDFExtras(closures, springs, joint_child)
+
+
+def closures_from_urdf(text: str, where: str = "URDF") -> list[tuple[str, str, np.ndarray, str, np.ndarray]]:
+    """The ``<constraint>`` elements as (name, parent link, parent xyz, child link, child xyz)."""
+    return [(c.name, c.parent, c.parent_xyz, c.child, c.child_xyz) for c in parse(text, where).closures]
+
+
+def write_urdf(params: H4Params, path: str | Path, name: str | None = None) -> Path:
+    """Write ``to_urdf(params)`` to ``path`` atomically (mode 0644; no half-written file)."""
+    path = Path(path)
+    return write_text_atomic(path, to_urdf(params, name or path.stem))
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically, mode 0644 (:func:`h4pin.files.write_text`)."""
+    return write_text(path, text)

@@ -1,0 +1,74 @@
+# SPDX-License-Identifier: Apache-2.0
+"""An atlas slice (:mod:`h4pin.studies.atlas`) in the meshcat viewer, as a coloured point cloud.
+
+Each reachable grid point (status 0) of the chosen theta is drawn at its position of D, coloured
+(viridis) by a quantity of the atlas -- by default the worst-direction compliance, the largest
+eigenvalue of K_tt of eq. 30 (Company, Pierrot, Fauroux, ICRA 2005).
+
+    from h4pin import load
+
+    from h4pin.studies import atlas
+
+    from h4pin.io import viewer
+
+    from h4pin.io import viewer_atlas
+    h4 = load()
+    ds = atlas.atlas(h4, x, y, z)
+    with viewer.Scene(h4) as scene:
+        viewer_atlas.show_atlas(scene, ds, "compliance_max")
+        scene.write_html("atlas.html")
+"""
+
+from __future__ import annotations
+
+import matplotlib
+import meshcat.geometry as mg
+import numpy as np
+import xarray as xr
+
+from h4pin import verdicts
+from h4pin.errors import ParameterError
+from h4pin.io.viewer import Scene
+from h4pin.studies.atlas import QUANTITIES
+
+
+def atlas_points(ds: xr.Dataset, quantity: str = "compliance_max", theta: float | None = None,
+                 log: bool | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Positions (3, n) in m and colours (3, n) in [0, 1] of the reachable points of one theta
+    slice (the nearest to ``theta``; default the first), and the colour range (lo, hi) in the
+    quantity's SI unit. Colours are viridis of the value (of its log if ``log``; default: log for
+    the compliance and condition numbers), spread over the 1st to 99th percentile."""
+    if quantity not in QUANTITIES:
+        raise ParameterError(f"quantity must be one of {tuple(QUANTITIES)}, got {quantity!r}")
+    sl = ds.isel(theta=0) if theta is None else ds.sel(theta=theta, method="nearest")
+    z, y, x = np.meshgrid(sl.z.values, sl.y.values, sl.x.values, indexing="ij")
+    ok = sl.status.values == verdicts.OK
+    if not np.any(ok):
+        raise ParameterError("the atlas slice has no reachable point (status 0)")
+    values = sl[quantity].values[ok]
+    log = quantity != "isotropy" if log is None else log
+    shown = np.log(values) if log else values
+    lo, hi = np.percentile(shown, [1, 99])
+    t = np.clip((shown - lo) / (hi - lo), 0.0, 1.0) if hi > lo else np.full(shown.shape, 0.5)
+    colours = matplotlib.colormaps["viridis"](t)[:, :3].T
+    positions = np.stack([x[ok], y[ok], z[ok]])
+    back = np.exp if log else (lambda v: v)
+    return positions, colours, float(back(lo)), float(back(hi))
+
+
+def show_atlas(scene: Scene, ds: xr.Dataset, quantity: str = "compliance_max", theta: float | None = None,
+               size: float = 0.006, path: str = "atlas") -> tuple[float, float]:
+    """Draw :func:`atlas_points` into ``scene`` (a :class:`h4pin.io.viewer.Scene`) as a
+    ``meshcat.geometry.PointCloud`` of point size ``size`` (m); add a legend line.
+
+    Returns:
+        The colour range (lo, hi) in the quantity's SI unit.
+    """
+    positions, colours, lo, hi = atlas_points(ds, quantity, theta)
+    cloud = mg.PointCloud(positions.astype(np.float32), colours.astype(np.float32), size=size)
+    scene.vis[path].set_object(cloud)
+    unit = QUANTITIES[quantity][0]
+    th = float(ds.theta.values[0] if theta is None else ds.sel(theta=theta, method="nearest").theta)
+    scene.legend.append(f"atlas: {quantity} at theta = {th:.2f} rad, {positions.shape[1]} reachable points, "
+                        f"{lo:.3g} (dark) to {hi:.3g} (yellow) {unit}")
+    return lo, hi

@@ -1,0 +1,331 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The compliance of an H4: :func:`compliance` and :class:`Compliance`.
+
+:func:`compliance` gives the 8x8 compliance matrix ``K``, ``dtp = K Gamma_ext``, with
+
+* ``dtp = [dD, dOmega, domega_1, domega_2]`` (eq. 3): small translation and rotation of the
+  central bar (world-aligned, at D) and the relative rotations of the lateral bars on their
+  revolute joints (m, rad);
+* ``Gamma_ext = [F, T, t_1, t_2]`` (eq. 16): force and torque on the central bar at D and the
+  torques on the two revolute joints (N, N.m).
+
+``K`` is the robot's: the four terms of eq. 30 (``control``, ``bending``, ``torsion``,
+``tension``; :mod:`h4pin.stiffness.eq30`) plus one named term per kind of optional compliant
+element the robot carries (:attr:`H4.elements <h4pin.H4>`, from its URDF;
+:mod:`h4pin.stiffness.elements`). ``elements=False`` gives eq. 30 alone.
+
+Two models of eq. 30 (``docs/errata.md``): ``"paper"`` (as printed, errata 1-3 fixed) and
+``"consistent"`` (erratum 4 fixed too: K symmetric, equal to the statics route). The elements'
+terms are the same in both.
+
+Backends (``method``), one verdict per pose on all of them (:mod:`h4pin.verdicts`): ``"kernel"``
+(the compiled closed form, :mod:`h4pin.stiffness.kernel`), ``"closed_form"`` (the numpy reference,
+any robot), ``"pinocchio"`` (Pinocchio's Jacobians and the compiled core,
+:mod:`h4pin.stiffness.pinocchio`); ``"auto"`` takes the kernel when it applies (exact
+parallelograms), else the numpy reference. Each is a module with a ``backend`` function listed
+in :data:`BACKENDS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import math
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+from h4pin.description.elements import Elements
+from h4pin.errors import LoadError, ParameterError
+from h4pin.kinematics import closed_form as cf
+from h4pin.kinematics import pinocchio as kin
+from h4pin.stiffness import elements as element_model
+from h4pin.stiffness.eq30 import MODELS, TERMS, Raw
+from h4pin.stiffness.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, n_matrix
+from h4pin.verdicts import INVALID, OK, SINGULAR, SINGULAR_COND, raise_for_status, singular_message
+
+#: The backends of :func:`compliance`: method name -> module with a ``backend`` function
+#: (:class:`Raw` from poses). A new backend is one module, one line here and one test parameter.
+BACKENDS = {"kernel": "h4pin.stiffness.kernel", "closed_form": "h4pin.stiffness.numpy_backend",
+            "pinocchio": "h4pin.stiffness.pinocchio"}
+METHODS = ("auto", *BACKENDS)
+_BATCH_CHUNK = 8192
+
+__all__ = ["BACKENDS", "METHODS", "MODELS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS", "Compliance",
+           "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
+
+
+class LazyTerms(Mapping):
+    """The four terms of eq. 30, computed on first access (a read-only mapping of name -> array).
+
+    A compliance result carries one, so that a user who does not look at the terms does not pay
+    for them (time, and 2 KB a pose)."""
+
+    def __init__(self, compute: Callable[[], Mapping[str, np.ndarray]]):
+        self._compute: Callable[[], Mapping[str, np.ndarray]] | None = compute
+        self._data: dict[str, np.ndarray] | None = None
+
+    def _get(self) -> dict[str, np.ndarray]:
+        if self._data is None:
+            self._data = dict(self._compute())  # type: ignore[misc]
+            self._compute = None
+        return self._data
+
+    @property
+    def computed(self) -> bool:
+        """Whether the terms have been computed yet."""
+        return self._data is not None
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._get()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+    def __repr__(self) -> str:
+        return f"LazyTerms({'computed: ' + ', '.join(self._get()) if self.computed else 'not computed yet'})"
+
+
+@dataclasses.dataclass(frozen=True)
+class Compliance:
+    """Compliance of an H4 at one pose (shapes as below) or a batch (a leading N axis).
+
+    Attributes:
+        matrix: (8, 8) K of eq. 30, dtp = K Gamma_ext, SI (m/N, rad/N, m/(N.m), rad/(N.m)).
+        terms: "control", "bending", "torsion", "tension" (eq. 30) and one per kind of optional
+            element that is on (``"revolute_radial"``, ..., :data:`h4pin.description.elements.ELEMENTS`):
+            (8, 8) each, summing to ``matrix``; computed on first access (:class:`LazyTerms`)
+            unless ``compliance(..., terms=True)``.
+        pose: (4,) [x, y, z, theta] in m, rad.
+        q: (4,) actuator angles in rad.
+        model: "paper" or "consistent".
+        condition: condition number of the scaled M1 (how close to a singularity the pose is;
+            poses at or above :data:`SINGULAR_COND` are refused).
+        status: verdict code per pose (0 ok; 1 unreachable, 2 joint limits, 3 interfering bars,
+            4 singular, 5 not a finite pose; :data:`h4pin.verdicts.STATUS_NAMES`).
+        valid: (N,) bool for a batch computed with ``on_error="nan"`` (False rows are NaN);
+            ``None`` otherwise.
+        elements: the optional elements included (``None``: eq. 30 alone).
+    """
+
+    matrix: np.ndarray
+    terms: Mapping[str, np.ndarray]
+    pose: np.ndarray
+    q: np.ndarray
+    model: str
+    condition: np.ndarray | float
+    status: np.ndarray | int = 0
+    valid: np.ndarray | None = None
+    elements: Elements | None = None
+
+    @property
+    def translational(self) -> np.ndarray:
+        """The 3x3 block dD = K_tt F, in m/N (Table II of the paper, in um/N, is 1e6 times it)."""
+        return self.matrix[..., :3, :3]
+
+    def deflection(self, load: np.ndarray) -> np.ndarray:
+        """dtp (8,) (or (N, 8)) for a load Gamma_ext (8,) or a force F (3,) at D, SI."""
+        return self.matrix @ as_load(load)
+
+    def at(self, offset: np.ndarray, load_at: np.ndarray | None = None) -> np.ndarray:
+        """Translational compliance (3, 3) (or (N, 3, 3)) at a point p fixed to the central bar,
+        for a force applied at p' (default p' = p), SI (m/N).
+
+        ``offset`` o and ``load_at`` o' (3,) (or (N, 3)) are the points in the central-bar frame,
+        in m: p - D = Rz(theta) o, with theta the pose's (the frame is world-aligned at theta = 0).
+        A small plate motion moves p by ``dp = dD + dOmega x (p - D) = T_p [dD; dOmega]`` with
+        ``T_p = [I, -[p - D]x]`` (3x6); a force F at p' is ``[F, (p' - D) x F] = T_p'^T F`` at D.
+        Hence ``C_pp' = T_p K6 T_p'^T``, K6 the F, T block of :attr:`matrix` (the same in both
+        models). With ``offset = load_at = 0`` it is :attr:`translational`; for p != p' it is not
+        symmetric (``C_p'p = C_pp'^T``).
+        """
+        theta = np.asarray(self.pose)[..., 3]
+        rot = cf.rot_z(theta)
+
+        def transform(o: np.ndarray) -> np.ndarray:
+            o = np.asarray(o, dtype=float)
+            if o.shape[-1:] != (3,):
+                raise ParameterError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
+            r = np.einsum("...ab,...b->...a", rot, o)
+            t = np.zeros((*r.shape[:-1], 3, 6))
+            t[..., :, :3] = np.eye(3)
+            t[..., :, 3:] = -np.swapaxes(cf.cross(r[..., None, :], np.eye(3)), -1, -2)  # -[r]x
+            return t
+
+        tp = transform(offset)
+        tq = tp if load_at is None else transform(load_at)
+        return tp @ self.matrix[..., :6, :6] @ np.swapaxes(tq, -1, -2)
+
+
+def as_load(load: Any) -> np.ndarray:
+    """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
+    try:
+        g = np.asarray(load, dtype=float)
+    except (TypeError, ValueError):
+        raise LoadError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
+    if g.shape == (3,):
+        g = np.r_[g, np.zeros(5)]
+    if g.shape != (8,) or not np.all(np.isfinite(g)):
+        raise LoadError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
+                        f"got {load!r}")
+    return g
+
+
+def matrices_at(h4, pose: np.ndarray) -> Matrices:
+    """All the paper's matrices at one pose, through Pinocchio (:func:`h4pin.stiffness.matrices.from_kinematics`).
+
+    Raises:
+        UnreachablePoseError (and subclasses): as :func:`compliance`.
+    """
+    return from_kinematics(kin.kinematics(h4, pose))
+
+
+def _check_options(model: str, on_error: str, method: str) -> None:
+    if model not in MODELS:
+        raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
+    if on_error not in ("raise", "nan"):
+        raise ParameterError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+
+
+def _elements_of(h4, elements: Elements | bool | None) -> Elements | None:
+    """The elements a call includes: the robot's (None/True), none (False), or those given."""
+    if elements is None or elements is True:
+        active = h4.elements
+    elif elements is False:
+        return None
+    elif isinstance(elements, Elements):
+        active = elements
+    else:
+        raise ParameterError(f"elements must be None (the robot's own), False (eq. 30 alone) or an h4pin.Elements, "
+                             f"got {type(elements).__name__}")
+    return None if active.off else active
+
+
+def _backend(h4, method: str) -> Callable[..., Raw]:
+    if method == "auto":
+        method = "kernel" if h4.geometry.ideal else "closed_form"
+    return importlib.import_module(BACKENDS[method]).backend
+
+
+def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements | bool | None = None,
+               on_error: str = "raise", method: str = "auto", terms: bool | None = None) -> Compliance:
+    """Compliance matrix K of the robot at a pose or a batch of poses: eq. 30 plus its elements.
+
+    Args:
+        h4: The robot (:func:`h4pin.load`).
+        pose: (4,) or (N, 4) poses [x, y, z, theta] in m, rad (copied: the result owns it).
+        model: ``"paper"`` (eq. 30 as printed, errata 1-3 fixed) or ``"consistent"``
+            (erratum 4 fixed too, K symmetric).
+        elements: ``None`` (default): the robot's own optional elements (:attr:`H4.elements <h4pin.H4>`,
+            from its URDF), each a named term; ``False``: eq. 30 alone; an :class:`h4pin.Elements`:
+            those instead.
+        on_error: ``"raise"``: the first pose the robot cannot take, or a singular one, raises
+            its typed error (:class:`h4pin.UnreachablePoseError` and subclasses,
+            :class:`h4pin.SingularPoseError`) naming its index. ``"nan"``: such poses (and NaN
+            poses) give NaN matrices, ``valid`` False and their ``status``.
+        method: ``"auto"``, ``"kernel"``, ``"closed_form"`` or ``"pinocchio"`` (module docstring).
+            Every method gives the same verdicts and numbers (to round-off).
+        terms: Compute the terms now (``True``); by default they are computed when first
+            accessed (:attr:`Compliance.terms`).
+
+    Returns:
+        A :class:`Compliance`.
+    """
+    _check_options(model, on_error, method)
+    active = _elements_of(h4, elements)
+    if (not terms and method == "auto" and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
+            and pose.dtype == np.float64 and math.isfinite(pose.sum()) and h4.geometry.ideal):
+        # The fast path of one pose: one compiled call; anything but a regular pose goes the long way.
+        from h4pin.stiffness import kernel
+
+        K, q, cond, status = kernel.for_geometry(h4.geometry)(pose, model)
+        if status == OK:
+            x = pose.copy()
+            if active is not None:
+                K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
+            return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms), x, q,
+                              model, cond, 0, None, active)
+    if (not terms and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
+            and pose.dtype == np.float64 and math.isfinite(pose.sum())):
+        # One regular pose on any backend: straight to it (a bad pose goes the long way for its error).
+        x = pose.copy()
+        x.setflags(write=False)
+        r = _backend(h4, method)(h4, x[None], model, False)
+        if r.status[0] == OK:
+            K = r.matrix[0]
+            if active is not None:
+                K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
+            return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms), x,
+                              r.q[0], model, float(r.condition[0]), 0, None, active)
+    res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
+    if terms:
+        return res
+    x = res.pose
+    return dataclasses.replace(res, terms=LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True,
+                                                                         active).terms))
+
+
+def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: bool,
+                active: Elements | None) -> Compliance:
+    raw = np.array(pose, dtype=float) if on_error == "nan" and not np.iscomplexobj(pose) else None
+    if raw is not None and raw.ndim in (1, 2) and raw.shape[-1] == 4:
+        x = raw
+        finite = np.atleast_1d(np.all(np.isfinite(np.atleast_2d(x)), axis=1))
+    else:
+        x = cf.as_poses(pose).copy()
+        finite = np.ones(len(x) if x.ndim == 2 else 1, dtype=bool)
+    x.setflags(write=False)
+    single = x.ndim == 1
+    xb = x[None] if single else x
+    n = len(xb)
+    names = TERMS + tuple(name for name in _element_names(active))
+    matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
+    cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
+    out_terms = {t: np.full((n, 8, 8), np.nan) for t in names} if keep else None
+    backend = _backend(h4, method)
+    idx_all = np.flatnonzero(finite)
+    for start in range(0, len(idx_all), _BATCH_CHUNK):
+        idx = idx_all[start:start + _BATCH_CHUNK]
+        r = backend(h4, np.ascontiguousarray(xb[idx]), model, keep)
+        matrix[idx], q[idx], cond[idx], status[idx] = r.matrix, r.q, r.condition, r.status
+        if keep:
+            for t, name in enumerate(TERMS):
+                out_terms[name][idx] = r.terms[:, t]
+        if active is not None:
+            for k in idx[r.status == OK]:
+                extra = element_model.element_terms(h4.geometry, xb[k], active)
+                matrix[k] += sum(extra.values())
+                if keep:
+                    for name, term in extra.items():
+                        out_terms[name][k] = term
+    if on_error == "raise" and np.any(status != OK):
+        k = int(np.argmax(status != OK))
+        raise_for_status(status, [None] * k + [_detail(h4, xb[k], int(status[k]), cond[k], k)], batch=not single)
+    valid = None if on_error == "raise" else status == OK
+    if single:
+        return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()}, x, q[0],
+                          model, float(cond[0]), int(status[0]), None if valid is None else np.array(valid[0]), active)
+    return Compliance(matrix, out_terms, x, q, model, cond, status, valid, active)
+
+
+def _element_names(active: Elements | None) -> tuple[str, ...]:
+    if active is None:
+        return ()
+    from h4pin.description.elements import ELEMENTS
+
+    return tuple(name for name in ELEMENTS if active.on(name))
+
+
+def _detail(h4, x: np.ndarray, status: int, cond: float, k: int) -> str:
+    """The message of a refused pose (built only for the pose that raises)."""
+    if status == SINGULAR:
+        return singular_message(cond)
+    if status == INVALID:
+        return f"pose #{k} is not finite: {x}"
+    return cf.solve(h4.geometry, x).detail[0]

@@ -1,0 +1,230 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The compiled core of eq. 30 (numba): written once, shared by every compiled front end.
+
+Two front ends build M1 (eq. 6) and the products of the paper's sparse matrices at one pose, then
+call this core: the closed-form kernel (:mod:`h4pin.stiffness.kernel`, the default path) and the
+Pinocchio path (:mod:`h4pin.stiffness.pinocchio`, M1 from Pinocchio's joint Jacobians). The numpy
+reference (:mod:`h4pin.stiffness.eq30`) computes the same quantities with dense arrays; one
+parametrised test keeps every backend equal to it.
+
+With ``Y = M1^-1`` and, per bar n = 2 i + j of leg i (0-based),
+
+* ``g_n`` = row n of M2 M3 (eqs. 6, 11): ``w_n . (p_n x u_i)``, ``p_n = P_i - A_n``;
+* ``d_n = w_n . (p_n x r_i)`` and ``e_n = (p_n x r_i) . w_n / |w_n|`` (M2 M4 = d e^T per leg,
+  eq. 23; r_i the unit vector A_i -> P_i);
+
+the four terms of eq. 30 are sums of outer products of columns of Y:
+
+* control / bending (eqs. 12, 15): ``sum_i c_i G_i L_i^T`` with ``G_i = sum_j Y[:, n] g_n`` (column
+  i of M1^-1 M2 M3), ``L_i = R^T J^T e_i`` (``"paper"``: G_i's x, y, z, theta entries in columns
+  0, 1, 2, 5) or ``L_i = G_i`` (``"consistent"``, erratum 4 fixed);
+* torsion (eq. 23): ``sum_i c_i (sum_j d_n Y[:, n]) (sum_j e_n l_n Y[:, n])^T``;
+* tension (eq. 27): ``sum_n c_n l_n^2 Y[:, n] Y[:, n]^T``,
+
+since ``Jb^-1 = diag(l) M1^-T`` (eq. 16) and ``M2 M5 = diag(l)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from h4pin.verdicts import SINGULAR_COND
+
+#: Model codes of the compiled functions.
+PAPER, CONSISTENT = 0, 1
+#: A pose is refused as singular unless its condition number is below this (one home:
+#: :data:`h4pin.verdicts.SINGULAR_COND`; numba freezes it at compile time).
+_SINGULAR = SINGULAR_COND
+
+
+@njit(cache=True, nogil=True, inline="always")
+def seg_dist2(A, B, n1, n2):
+    """Squared distance between segments A[n1]-B[n1] and A[n2]-B[n2] (Ericson, RTCD 5.1.9)."""
+    d1x, d1y, d1z = B[n1, 0] - A[n1, 0], B[n1, 1] - A[n1, 1], B[n1, 2] - A[n1, 2]
+    d2x, d2y, d2z = B[n2, 0] - A[n2, 0], B[n2, 1] - A[n2, 1], B[n2, 2] - A[n2, 2]
+    rx, ry, rz = A[n1, 0] - A[n2, 0], A[n1, 1] - A[n2, 1], A[n1, 2] - A[n2, 2]
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    c = d1x * rx + d1y * ry + d1z * rz
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    den = a * e - b * b
+    s = 0.0
+    if den > 1e-14 * a * e:
+        s = min(max((b * f - c * e) / den, 0.0), 1.0)
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = min(max(-c / a, 0.0), 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = min(max((b - c) / a, 0.0), 1.0)
+    x = rx + d1x * s - d2x * t
+    y = ry + d1y * s - d2y * t
+    z = rz + d1z * s - d2z * t
+    return x * x + y * y + z * z
+
+
+@njit(cache=True, nogil=True, inline="always")
+def rank1(M, s, u, v):
+    """M += s u v^T (8 x 8)."""
+    for a in range(8):
+        sa = s * u[a]
+        for c in range(8):
+            M[a, c] += sa * v[c]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def invert_scaled(M, lw, Y):
+    """Y = M1^-1 by Gauss-Jordan with partial pivoting (M is overwritten); returns the 1-norm
+    condition number of the scaled M1 (rows over l_n, columns 3..7 over the mean bar length),
+    ``inf`` for an exactly singular M1 (Y is then garbage)."""
+    lmean = 0.0
+    for n in range(8):
+        lmean += lw[n]
+    lmean /= 8.0
+    norm1 = 0.0
+    for c in range(8):
+        s = 0.0
+        for n in range(8):
+            s += abs(M[n, c]) / lw[n]
+        if c >= 3:
+            s /= lmean
+        norm1 = max(norm1, s)
+    for a in range(8):
+        for c in range(8):
+            Y[a, c] = 1.0 if a == c else 0.0
+    for c in range(8):
+        p = c
+        big = abs(M[c, c])
+        for a in range(c + 1, 8):
+            if abs(M[a, c]) > big:
+                big = abs(M[a, c])
+                p = a
+        if big == 0.0:
+            return np.inf
+        if p != c:
+            for e in range(8):
+                M[c, e], M[p, e] = M[p, e], M[c, e]
+                Y[c, e], Y[p, e] = Y[p, e], Y[c, e]
+        inv = 1.0 / M[c, c]
+        for e in range(8):
+            M[c, e] *= inv
+            Y[c, e] *= inv
+        for a in range(8):
+            if a != c:
+                f = M[a, c]
+                if f != 0.0:
+                    for e in range(8):
+                        M[a, e] -= f * M[c, e]
+                        Y[a, e] -= f * Y[c, e]
+    ninv = 0.0
+    for n in range(8):
+        s = 0.0
+        for a in range(8):
+            s += abs(Y[a, n]) * (lmean if a >= 3 else 1.0)
+        ninv = max(ninv, s * lw[n])
+    cond = norm1 * ninv
+    return cond if cond == cond else np.inf
+
+
+@njit(cache=True, nogil=True, inline="always")
+def torsion_factors(A, W, lw, P, d, e):
+    """d_n, e_n of the module docstring (eq. 23) from the forearm-side points A (8, 3), the bar
+    vectors W (8, 3) = B_n - A_n, their lengths lw (8,) and the actuator points P (4, 3)."""
+    for i in range(4):
+        rx = P[i, 0] - 0.5 * (A[2 * i, 0] + A[2 * i + 1, 0])
+        ry = P[i, 1] - 0.5 * (A[2 * i, 1] + A[2 * i + 1, 1])
+        rz = P[i, 2] - 0.5 * (A[2 * i, 2] + A[2 * i + 1, 2])
+        rn = np.sqrt(rx * rx + ry * ry + rz * rz)
+        rx, ry, rz = rx / rn, ry / rn, rz / rn
+        for j in range(2):
+            n = 2 * i + j
+            qx, qy, qz = P[i, 0] - A[n, 0], P[i, 1] - A[n, 1], P[i, 2] - A[n, 2]
+            prx, pry, prz = qy * rz - qz * ry, qz * rx - qx * rz, qx * ry - qy * rx
+            d[n] = W[n, 0] * prx + W[n, 1] * pry + W[n, 2] * prz
+            e[n] = d[n] / lw[n]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def eq30(Y, g, d, e, lw, c_ctrl, c_bend, c_tors, c_tens, model, K, T, want_terms, Gc, ws):
+    """K (8, 8) of eq. 30 (and with ``want_terms`` its four terms T (4, 8, 8), K their sum) from
+    Y = M1^-1 and the per-bar g, d, e, l (module docstring). Gc (8, 4) receives M1^-1 M2 M3 (its
+    rows 0, 1, 2, 5 are J of eq. 8); ws (5, 8) is scratch."""
+    for i in range(4):
+        for a in range(8):
+            Gc[a, i] = Y[a, 2 * i] * g[2 * i] + Y[a, 2 * i + 1] * g[2 * i + 1]
+    if want_terms:
+        T[:] = 0.0
+    for a in range(8):
+        for c in range(8):
+            K[a, c] = 0.0
+    # Actuator springs: control and bending (eqs. 12, 15), column G_i, load row L_i.
+    for i in range(4):
+        for c in range(8):
+            ws[2, c] = Gc[c, i]
+            ws[3, c] = Gc[c, i] if (model == CONSISTENT or c < 3 or c == 5) else 0.0
+        if want_terms:
+            rank1(T[0], c_ctrl[i], ws[2], ws[3])
+            rank1(T[1], c_bend[i], ws[2], ws[3])
+        else:
+            rank1(K, c_ctrl[i] + c_bend[i], ws[2], ws[3])
+    # Forearm torsion (eq. 23).
+    for i in range(4):
+        for a in range(8):
+            ws[0, a] = 0.0
+            ws[1, a] = 0.0
+        for j in range(2):
+            n = 2 * i + j
+            for a in range(8):
+                ws[0, a] += Y[a, n] * d[n]
+                ws[1, a] += Y[a, n] * e[n] * lw[n]
+        rank1(T[2] if want_terms else K, c_tors[i], ws[0], ws[1])
+    # Bar tension (eq. 27).
+    for n in range(8):
+        for a in range(8):
+            ws[4, a] = Y[a, n]
+        rank1(T[3] if want_terms else K, c_tens[n] * lw[n] * lw[n], ws[4], ws[4])
+    if want_terms:
+        for a in range(8):
+            for c in range(8):
+                K[a, c] = T[0, a, c] + T[1, a, c] + T[2, a, c] + T[3, a, c]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def refuse(K, T, want_terms, Jo, want_jac):
+    """NaN outputs of a pose that gets no K (status not 0)."""
+    K[:, :] = np.nan
+    if want_terms:
+        T[:] = np.nan
+    if want_jac:
+        Jo[:] = np.nan
+
+
+@njit(cache=True, nogil=True, inline="always")
+def finish(M, W, lw, A, P, g, c_ctrl, c_bend, c_tors, c_tens, model, status, K, T, want_terms, Jo, want_jac,
+           Y, Gc, ws, d, e):
+    """From M1 (overwritten) to the verdict and K: inverts M1 (:func:`invert_scaled`), refuses a
+    singular pose (status 4 unless an earlier verdict holds), else fills K (and T, J of eq. 8).
+    Returns (condition, status)."""
+    cond = invert_scaled(M, lw, Y)
+    if status == 0 and not (cond < _SINGULAR):
+        status = 4
+    if status != 0:
+        refuse(K, T, want_terms, Jo, want_jac)
+        return cond, status
+    torsion_factors(A, W, lw, P, d, e)
+    eq30(Y, g, d, e, lw, c_ctrl, c_bend, c_tors, c_tens, model, K, T, want_terms, Gc, ws)
+    if want_jac:
+        for i in range(4):
+            Jo[0, i], Jo[1, i], Jo[2, i], Jo[3, i] = Gc[0, i], Gc[1, i], Gc[2, i], Gc[5, i]
+    return cond, 0
+
+
+@njit(cache=True, nogil=True)
+def scratch():
+    """Scratch arrays of one thread: A, B, W (8, 3), lw (8,), M, Y (8, 8), Gc (8, 4), ws (5, 8),
+    g, d, e (8,)."""
+    return (np.empty((8, 3)), np.empty((8, 3)), np.empty((8, 3)), np.empty(8), np.empty((8, 8)), np.empty((8, 8)),
+            np.empty((8, 4)), np.empty((5, 8)), np.empty(8), np.empty(8), np.empty(8))

@@ -1,0 +1,197 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The terms of the compliant elements that eq. 30 neglects, by unit loads on the plate's statics.
+
+The elements and their data: :mod:`h4pin.description.elements` (read from the URDF into
+:attr:`H4.elements <h4pin.H4>`); :func:`h4pin.compliance` adds one named term per kind that is on.
+
+Unit-load method on a statics route: the equilibrium of the central bar and the two lateral bars
+under ``Gamma_ext = [F, T, t1, t2]`` (:func:`plate_loads`) gives each element's load per unit
+load (the joint reactions, the bar tensions, the wrenches at the beams' tips and on the actuator
+mounts, :func:`element_loads`), and ``C_extra = sum_s c_s g_s g_s^T`` over scalar springs,
+``sum_b W_b^T C_b W_b`` over beams and 6-D mounts (:func:`element_terms`). The terms are
+symmetric and the same in both models of eq. 30.
+
+Beams (:func:`beam_compliance`): Euler-Bernoulli, isotropic bending, axial and shear compliance
+neglected; tip compliance L^3/(3EI), L^2/(2EI), L/(EI), L/(GJ).
+
+The finite-difference route of :mod:`h4pin.checks.elements` (the plate solved with joint frames,
+beam tips and forearm roots moved and turned) checks each term.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from h4pin.description.elements import ELEMENTS, Elements
+from h4pin.description.geometry import H4Geometry
+from h4pin.kinematics import closed_form as geometry
+from h4pin.kinematics.closed_form import normal_pair, skew
+
+
+def plate_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
+    """Loads per unit ``Gamma_ext`` (8 columns) from the equilibrium of the three plate bodies.
+
+    Returns ``{"bars": (8, 8)`` tensions (N per unit load), ``"force": (2, 3, 8)`` the joint force
+    on lateral bar k (world frame), ``"moment": (2, 3, 8)`` the joint couple on lateral bar k
+    (world frame, normal to the joint axis), ``"axis": (2, 3)`` the joint axes v_k (world),
+    ``"points"``: the :class:`h4pin.kinematics.closed_form.Points` of the pose, ``"w": (8, 3)`` unit bar
+    directions A_ij -> B_ij}. Moments are taken about D; the joint carries no moment about its
+    axis but the applied torque t_k.
+    """
+    pts = geometry.assembled_points(g, pose)
+    w = (pts.Bij - pts.Aij).reshape(8, 3)
+    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    b = pts.Bij.reshape(8, 3) - pts.D
+    a = np.zeros((18, 18))
+    rhs = np.zeros((18, 8))
+    rhs[0:3, 0:3] = -np.eye(3)
+    rhs[3:6, 3:6] = -np.eye(3)
+    normals = []
+    for k in range(2):
+        cf, cm = 8 + 5 * k, 11 + 5 * k
+        ck = pts.C[k] - pts.D
+        normal = normal_pair(pts.v[k])
+        normals.append(normal)
+        r0 = 6 + 6 * k
+        for sign, rows in ((-1.0, 0), (1.0, r0)):  # central bar gets minus the joint load
+            a[rows:rows + 3, cf:cf + 3] += sign * np.eye(3)
+            a[rows + 3:rows + 6, cf:cf + 3] += sign * skew(ck)
+            a[rows + 3:rows + 6, cm:cm + 2] += sign * normal
+        for n in np.flatnonzero(g.lat == k):
+            a[r0:r0 + 3, n] = -w[n]
+            a[r0 + 3:r0 + 6, n] = -np.cross(b[n], w[n])
+        rhs[3:6, 6 + k] = pts.v[k]  # -t_k v_k on the central bar
+        rhs[r0 + 3:r0 + 6, 6 + k] = -pts.v[k]  # +t_k v_k on lateral bar k
+    sol = np.linalg.solve(a, rhs)
+    force = np.stack([sol[8 + 5 * k:11 + 5 * k] for k in range(2)])
+    moment = np.stack([normals[k] @ sol[11 + 5 * k:13 + 5 * k] for k in range(2)])
+    return {"bars": sol[:8], "force": force, "moment": moment, "axis": pts.v.copy(), "points": pts, "w": w}
+
+
+def beam_compliance(axis: np.ndarray, length: float, ei: float, gj: float) -> tuple[np.ndarray, np.ndarray]:
+    """Tip compliance (6, 6) of a straight cantilever, split into bending and torsion.
+
+    Beam model: an Euler-Bernoulli beam of ``length`` L along the unit ``axis`` e, clamped at its
+    inner end, loaded at its outer end by a force P and a couple M (about the tip); isotropic
+    bending rigidity ``ei`` about every axis normal to e, torsion rigidity ``gj`` about e; axial
+    and shear compliance neglected. Tip translation and rotation ``[delta, phi] = C [P, M]``:
+    ``delta = L^3/(3EI) P_perp + L^2/(2EI) M x e``, ``phi = L^2/(2EI) e x P + L/(EI) M_perp
+    + L/(GJ) (M.e) e``. Returns (bending part, torsion part), in the frame of ``axis``; an
+    infinite rigidity gives a zero part.
+    """
+    e = np.asarray(axis, dtype=float)
+    perp = np.eye(3) - np.outer(e, e)
+    f = 1.0 / ei
+    bend = np.zeros((6, 6))
+    bend[:3, :3] = length**3 / 3.0 * f * perp
+    bend[3:, 3:] = length * f * perp
+    bend[3:, :3] = length**2 / 2.0 * f * skew(e)
+    bend[:3, 3:] = bend[3:, :3].T
+    tors = np.zeros((6, 6))
+    tors[3:, 3:] = length / gj * np.outer(e, e)
+    return bend, tors
+
+
+def element_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
+    """Loads of the elements per unit Gamma_ext (world frame, SI per unit load).
+
+    * ``revolute_radial`` (4, 8): joint k's force along two unit vectors normal to v_k (rows
+      2k, 2k + 1); ``revolute_axial`` (2, 8) along v_k; ``revolute_tilt`` (4, 8): joint k's
+      couple about the two normals; ``ball_radial`` (8, 8): each bar's tension (the bar's two
+      ball joints carry it).
+    * ``central`` (2, 6, 8): the wrench [force, couple about C_k] the lateral bar k and the joint
+      torque t_k put on the tip C_k of the central-bar segment D-C_k (the same force and its
+      moment about D at the root section, the segment being clamped at D where the load applies).
+    * ``lateral`` (4, 6, 8): the wrench [force, couple about B_i] bars i1, i2 put on the tip B_i
+      of lateral bar k's arm C_k-B_i (clamped at C_k).
+    * ``base`` (4, 6, 8): the wrench [force, couple about P_i] of leg i on the base: the pulls of
+      bars i1, i2 on the forearm at A_ij; ``shaft_tilt`` (8, 8): its couple about the two unit
+      normals to u_i (rows 2i, 2i + 1).
+    """
+    p = plate_loads(g, pose)
+    pts, w, f = p["points"], p["w"], p["bars"]
+    normals = [normal_pair(v) for v in p["axis"]]
+    radial = np.concatenate([normals[k].T @ p["force"][k] for k in range(2)])
+    axial = np.stack([p["axis"][k] @ p["force"][k] for k in range(2)])
+    tilt = np.concatenate([normals[k].T @ p["moment"][k] for k in range(2)])
+    central = np.zeros((2, 6, 8))
+    for k in range(2):
+        central[k, :3] = -p["force"][k]
+        central[k, 3:] = -p["moment"][k]
+        central[k, 3:, 6 + k] -= p["axis"][k]
+    pulls = w[:, :, None] * f[:, None, :]  # (8, 3, 8): bar n's pull on its forearm at A_n per unit load
+    bij, aij = pts.Bij.reshape(8, 3), pts.Aij.reshape(8, 3)
+    lateral = np.zeros((4, 6, 8))
+    base = np.zeros((4, 6, 8))
+    for n in range(8):
+        i = n // 2
+        lateral[i, :3] -= pulls[n]
+        lateral[i, 3:] -= np.cross(bij[n] - pts.B[i], pulls[n], axis=0)
+        base[i, :3] += pulls[n]
+        base[i, 3:] += np.cross(aij[n] - pts.P[i], pulls[n], axis=0)
+    shaft = np.concatenate([normal_pair(g.u[i]).T @ base[i, 3:] for i in range(4)])
+    return {"revolute_radial": radial, "revolute_axial": axial, "revolute_tilt": tilt, "ball_radial": f,
+            "central": central, "lateral": lateral, "base": base, "shaft_tilt": shaft}
+
+
+def spring_compliances(elements: Elements) -> dict[str, np.ndarray]:
+    """Compliance of every scalar spring of :func:`element_loads` (SI): radial and tilt two
+    springs per joint, the ball joints two in series per bar, the shaft two per actuator."""
+    return {"revolute_radial": np.repeat(elements.revolute_radial, 2),
+            "revolute_axial": elements.revolute_axial,
+            "revolute_tilt": np.repeat(elements.revolute_tilt, 2),
+            "ball_radial": 2.0 * elements.ball_radial,
+            "shaft_tilt": np.repeat(elements.shaft_tilt, 2)}
+
+
+#: Beam kinds: rigidity field -> (beam family, part of :func:`beam_compliance`: 0 bending, 1 torsion).
+BEAMS = {"central_EI": ("central", 0), "central_GJ": ("central", 1), "lateral_EI": ("lateral", 0),
+         "lateral_GJ": ("lateral", 1)}
+
+
+def beam_axes(g: H4Geometry) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each beam's inner-to-outer vector in its own body's frame (the central bar's for D-C_k,
+    lateral bar k's for C_k-B_i): ``{"central": (2, 3), "lateral": (4, 3)}`` and lengths."""
+    out = {}
+    for fam, vec in (("central", np.asarray(g.C0)), ("lateral", np.asarray(g.b_leg))):
+        length = np.linalg.norm(vec, axis=1)
+        out[fam] = (vec / length[:, None], length)
+    return out
+
+
+def _beam_matrix(name: str, elements: Elements, index: int, axis: np.ndarray, length: float) -> np.ndarray:
+    fam, part = BEAMS[name]
+    ei, gj = getattr(elements, f"{fam}_EI")[index], getattr(elements, f"{fam}_GJ")[index]
+    return beam_compliance(axis, length, ei, gj)[part]
+
+
+def element_terms(g: H4Geometry, pose: np.ndarray, elements: Elements) -> dict[str, np.ndarray]:
+    """Compliance term (8, 8) of each element kind that is on, SI: ``sum_s c_s g_s g_s^T`` over
+    its scalar springs, ``sum_b W_b^T C_b W_b`` over its beams or 6-D mounts (W_b the (6, 8)
+    wrench per unit load, C_b the (6, 6) tip or mount compliance)."""
+    loads = element_loads(g, pose)
+    comp = spring_compliances(elements)
+    out = {}
+    pts = geometry.assembled_points(g, pose)
+    for name in ELEMENTS:
+        if not elements.on(name):
+            continue
+        if name in comp:
+            out[name] = (loads[name].T * comp[name]) @ loads[name]
+        elif name in BEAMS:
+            fam = BEAMS[name][0]
+            vec = (pts.C - pts.D) if fam == "central" else (pts.B - pts.C[g.leg_lat])
+            term = np.zeros((8, 8))
+            for index, wrench in enumerate(loads[fam]):
+                length = float(np.linalg.norm(vec[index]))
+                term += wrench.T @ _beam_matrix(name, elements, index, vec[index] / length, length) @ wrench
+            out[name] = term
+        else:  # base: isotropic translation on the force, rotation on the couple
+            part = slice(0, 3) if name == "base_translation" else slice(3, 6)
+            c = getattr(elements, name)
+            out[name] = sum(c[i] * loads["base"][i, part].T @ loads["base"][i, part] for i in range(4))
+    return out
+
+
+__all__ = ["BEAMS", "beam_axes", "beam_compliance", "element_loads", "element_terms", "plate_loads",
+           "spring_compliances"]

@@ -1,0 +1,456 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The default compiled path: eq. 30 of Company, Pierrot and Fauroux (ICRA 2005) per pose, in numba.
+
+One compiled call does a whole pose: the inverse geometry (closed form, elbow out), the verdict
+(:mod:`h4pin.verdicts`), M1 (eq. 6) and the products of M2, M3, M4, M5 from the points, then the
+shared compiled core of eq. 30 (:mod:`h4pin.stiffness.core`). Robots whose parallelograms are
+exact (:attr:`H4Geometry.ideal <h4pin.H4Geometry>`); the numpy reference (:mod:`h4pin.stiffness.eq30`) covers
+every robot and a parametrised test keeps them equal.
+
+The robot comes as an :class:`h4pin.H4Geometry` (``h4.geometry``) or any object with the
+attributes listed in :func:`prepare`, packed once into one float vector.
+
+K is NaN unless the status is 0 (:data:`h4pin.verdicts.OK`).
+"""
+
+from __future__ import annotations
+
+import types
+import weakref
+from collections.abc import Iterable, Iterator
+from typing import Any, NamedTuple
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from h4pin.description.geometry import H4Geometry
+from h4pin.errors import ParameterError, PoseError
+from h4pin.kinematics.closed_form import as_poses
+from h4pin.stiffness import core
+from h4pin.stiffness.eq30 import MODELS
+
+#: Poses per parallel block (scratch arrays are allocated once per block).
+_BLOCK = 256
+#: Default chunk of :func:`iter_compliance` (about 36 MB of output without terms).
+CHUNK = 65_536
+
+# Layout of the packed geometry vector (offsets into one float64 array).
+_P = 0  # (4, 3) P_i
+_U = 12  # (4, 3) u_i
+_V = 24  # (8, 3) A0_ij - P_i
+_UV = 48  # (8, 3) u_i x (A0_ij - P_i)
+_UVU = 72  # (8, 3) (u_i . (A0_ij - P_i)) u_i
+_M = 96  # (4, 3) m_i
+_UM = 108  # (4, 3) u_i x m_i
+_R2 = 120  # (4,) r_i^2
+_LL = 124  # (4,) bar length of leg i (mean of its two bars)
+_C0 = 128  # (2, 3)
+_BB = 134  # (8, 3) B_ij - C_k
+_BM = 158  # (4, 3) B_i - C_k
+_LAT = 170  # (8,) lateral bar of each bar (as float)
+_CCTRL = 178  # (4,)
+_CBEND = 182  # (4,)
+_CTORS = 186  # (4,)
+_CTENS = 190  # (8,)
+_QLO = 198  # (4,)
+_QHI = 202  # (4,)
+_WLO = 206  # (2,)
+_WHI = 208  # (2,)
+_CLEAR = 210
+_SIZE = 211
+
+
+# ----------------------------------------------------------------------------------------------
+# Geometry object
+
+
+def _namespace(g: H4Geometry) -> types.SimpleNamespace:
+    """The geometry object of :func:`prepare` for an :class:`h4pin.description.geometry.H4Geometry` (a loaded
+    robot's ``h4.geometry``): its arrays, with the spring compliances per element."""
+    if not g.ideal:
+        raise ParameterError("the compiled kernel handles robots whose parallelograms are exact (H4Geometry.ideal); "
+                             "use the numpy path (method='closed_form') for a toleranced robot")
+    c = g.compliances()
+    return types.SimpleNamespace(P=g.P, u=g.u, A0=g.A0, l=g.l, lat=g.lat, C0=g.C0, b=g.b, c_ctrl=c["control"],
+                                 c_bend=c["bending"], c_tors=c["torsion"], c_tens=c["tension"], q_lo=g.q_lo,
+                                 q_hi=g.q_hi, omega_lo=g.omega_lo, omega_hi=g.omega_hi,
+                                 bar_clearance=g.bar_clearance)
+
+
+_SHAPES = {"P": (4, 3), "u": (4, 3), "A0": (8, 3), "l": (8,), "lat": (8,), "C0": (2, 3), "b": (8, 3),
+           "c_ctrl": (4,), "c_bend": (4,), "c_tors": (4,), "c_tens": (8,), "q_lo": (4,), "q_hi": (4,),
+           "omega_lo": (2,), "omega_hi": (2,)}
+
+
+def _array(g: Any, name: str) -> np.ndarray:
+    try:
+        value = np.asarray(getattr(g, name), dtype=float)
+    except AttributeError:
+        raise ParameterError(f"geometry object has no attribute {name!r}") from None
+    if value.shape != _SHAPES[name]:
+        raise ParameterError(f"geometry.{name} must have shape {_SHAPES[name]}, got {value.shape}")
+    if not np.all(np.isfinite(value)):
+        raise ParameterError(f"geometry.{name} has non-finite entries")
+    return value
+
+
+class Kernel:
+    """A geometry packed for the compiled kernel (see :func:`prepare`). Calling it on one pose is
+    the fast single-pose path: ``K, q, condition, status = kernel(pose)``."""
+
+    def __init__(self, g: Any):
+        self.geometry = g
+        a = {name: _array(g, name) for name in _SHAPES}
+        lat = a["lat"]
+        if not np.all((lat == 0) | (lat == 1)) or np.any(lat[0::2] != lat[1::2]):
+            raise ParameterError(f"geometry.lat must be 0 or 1, the same for both bars of a leg, got {lat.tolist()}")
+        u = a["u"]
+        if np.any(np.abs(np.linalg.norm(u, axis=1) - 1.0) > 1e-9):
+            raise ParameterError("geometry.u must hold unit vectors")
+        for name in ("l", "c_ctrl", "c_bend", "c_tors", "c_tens"):
+            if np.any(a[name] <= 0):
+                raise ParameterError(f"geometry.{name} must be > 0, got {a[name].tolist()}")
+        clearance = float(getattr(g, "bar_clearance", np.nan))
+        if not np.isfinite(clearance) or clearance < 0:
+            raise ParameterError(f"geometry.bar_clearance must be finite and >= 0, got {clearance!r}")
+        leg = np.repeat(np.arange(4), 2)
+        P = a["P"]
+        v = a["A0"] - P[leg]
+        m = 0.5 * (v[0::2] + v[1::2])
+        um = np.cross(u, m)
+        if np.any(np.abs(np.einsum("ia,ia->i", m, u)) > 1e-9 * np.linalg.norm(m, axis=1)):
+            raise ParameterError("geometry.P must be the foot of the perpendicular from the forearm end A_i "
+                                 "on the actuator axis (m_i . u_i = 0)")
+        G = np.zeros(_SIZE)
+        G[_P:_P + 12] = P.ravel()
+        G[_U:_U + 12] = u.ravel()
+        G[_V:_V + 24] = v.ravel()
+        G[_UV:_UV + 24] = np.cross(u[leg], v).ravel()
+        G[_UVU:_UVU + 24] = (np.einsum("na,na->n", u[leg], v)[:, None] * u[leg]).ravel()
+        G[_M:_M + 12] = m.ravel()
+        G[_UM:_UM + 12] = um.ravel()
+        G[_R2:_R2 + 4] = np.einsum("ia,ia->i", m, m)
+        G[_LL:_LL + 4] = 0.5 * (a["l"][0::2] + a["l"][1::2])
+        G[_C0:_C0 + 6] = a["C0"].ravel()
+        G[_BB:_BB + 24] = a["b"].ravel()
+        G[_BM:_BM + 12] = (0.5 * (a["b"][0::2] + a["b"][1::2])).ravel()
+        G[_LAT:_LAT + 8] = lat
+        G[_CCTRL:_CCTRL + 4] = a["c_ctrl"]
+        G[_CBEND:_CBEND + 4] = a["c_bend"]
+        G[_CTORS:_CTORS + 4] = a["c_tors"]
+        G[_CTENS:_CTENS + 8] = a["c_tens"]
+        G[_QLO:_QLO + 4] = a["q_lo"]
+        G[_QHI:_QHI + 4] = a["q_hi"]
+        G[_WLO:_WLO + 2] = a["omega_lo"]
+        G[_WHI:_WHI + 2] = a["omega_hi"]
+        G[_CLEAR] = clearance
+        G.setflags(write=False)
+        self.packed = G
+
+    def __call__(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
+        """K (8, 8), q (4,), condition, status at one pose [x, y, z, theta] (m, rad)."""
+        x = np.asarray(pose, dtype=np.float64)
+        if x.shape != (4,):
+            x = as_poses(pose)
+            if x.ndim != 1:
+                raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
+        return _one(x, self.packed, 1 if model == "consistent" else _model_code(model))
+
+
+def prepare(g: H4Geometry | Kernel | Any) -> Kernel:
+    """Check and pack a geometry object once, for many calls of the kernel.
+
+    ``g`` has the attributes (SI, world frame, legs i = 0..3, bars n = 2 i + j):
+
+    * ``P`` (4, 3): a point of actuator axis i, the foot of the perpendicular from A_i;
+      ``u`` (4, 3): unit actuator axis (q right-handed about u_i);
+    * ``A0`` (8, 3): ball-joint centres A_ij at q_i = 0; ``l`` (8,): bar lengths;
+    * ``lat`` (8,): lateral bar (0/1) of each bar; ``C0`` (2, 3): C_k - D at theta = 0 in the
+      central bar's frame; ``b`` (8, 3): B_ij - C_k (the lateral bars only translate);
+    * springs: ``c_ctrl`` (4,) 1/kc_i, ``c_bend`` (4,) phi^3 r_i/(3 E I), ``c_tors`` (4,)
+      phi r_i/(G I0) (rad/(N.m)), ``c_tens`` (8,) l/(Sb Eb) (m/N);
+    * limits: ``q_lo``, ``q_hi`` (4,) actuator angles, ``omega_lo``, ``omega_hi`` (2,) lateral
+      revolutes (rad); ``bar_clearance`` (m): least distance between the axes of two bars of
+      different legs.
+
+    An :class:`h4pin.H4Geometry` (``h4.geometry``, ideal parallelograms) is converted.
+
+    Raises:
+        ParameterError: an attribute is missing or has the wrong shape (the message names it).
+    """
+    if isinstance(g, Kernel):
+        return g
+    if isinstance(g, H4Geometry):
+        g = _namespace(g)
+    return Kernel(g)
+
+
+def _model_code(model: str) -> int:
+    if model not in MODELS:
+        raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
+    return MODELS.index(model)
+
+
+# ----------------------------------------------------------------------------------------------
+# The compiled pose: closed-form front end of the shared core (h4pin.stiffness.core)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inverse_geometry(px, py, pz, th, G, qo, A, B):
+    """Closed-form inverse geometry on the leg midpoints (alpha cos q + beta sin q = rhs, elbow
+    out): fills qo (4,), A, B (8, 3); returns False if a leg cannot reach."""
+    ct, st = np.cos(th), np.sin(th)
+    for i in range(4):
+        k = int(G[_LAT + 2 * i])
+        cx = px + ct * G[_C0 + 3 * k] - st * G[_C0 + 3 * k + 1]
+        cy = py + st * G[_C0 + 3 * k] + ct * G[_C0 + 3 * k + 1]
+        cz = pz + G[_C0 + 3 * k + 2]
+        ex = cx + G[_BM + 3 * i] - G[_P + 3 * i]
+        ey = cy + G[_BM + 3 * i + 1] - G[_P + 3 * i + 1]
+        ez = cz + G[_BM + 3 * i + 2] - G[_P + 3 * i + 2]
+        alpha = ex * G[_M + 3 * i] + ey * G[_M + 3 * i + 1] + ez * G[_M + 3 * i + 2]
+        beta = ex * G[_UM + 3 * i] + ey * G[_UM + 3 * i + 1] + ez * G[_UM + 3 * i + 2]
+        rhs = 0.5 * (ex * ex + ey * ey + ez * ez + G[_R2 + i] - G[_LL + i] * G[_LL + i])
+        rho = np.sqrt(alpha * alpha + beta * beta)
+        if not (rho > 0.0) or abs(rhs) > rho:
+            for a in range(4):
+                qo[a] = np.nan
+            return False
+        cd = rhs / rho
+        sd = np.sqrt(max(1.0 - cd * cd, 0.0))
+        cphi, sphi = alpha / rho, beta / rho
+        cq = cphi * cd + sphi * sd  # q = phi - delta
+        sq = sphi * cd - cphi * sd
+        qo[i] = np.arctan2(sq, cq)
+        for j in range(2):
+            n = 2 * i + j
+            for a in range(3):
+                A[n, a] = (G[_P + 3 * i + a] + cq * G[_V + 3 * n + a] + sq * G[_UV + 3 * n + a]
+                           + (1.0 - cq) * G[_UVU + 3 * n + a])
+            B[n, 0] = cx + G[_BB + 3 * n]
+            B[n, 1] = cy + G[_BB + 3 * n + 1]
+            B[n, 2] = cz + G[_BB + 3 * n + 2]
+    return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _limits_and_bars(th, G, qo, A, B):
+    """Verdict of an assembled pose before M1: 2 (joint limits), 3 (interfering bars) or 0."""
+    for i in range(4):
+        if not (G[_QLO + i] <= qo[i] <= G[_QHI + i]):
+            return 2
+    for k in range(2):
+        if not (G[_WLO + k] <= -th <= G[_WHI + k]):
+            return 2
+    c2 = G[_CLEAR] * G[_CLEAR]
+    for n1 in range(6):
+        for n2 in range(2 * (n1 // 2) + 2, 8):
+            if core.seg_dist2(A, B, n1, n2) < c2:
+                return 3
+    return 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _m1(px, py, pz, th, G, A, B, W, lw, M, g):
+    """M1 of eq. 6 (row n = [w, w x (D - B_n), (w x (C_k - B_n)).z in column 6 + k]), the bar
+    vectors W, lengths lw and g_n = w_n . (p_n x u_i) (row n of M2 M3)."""
+    ct, st = np.cos(th), np.sin(th)
+    for n in range(8):
+        k = int(G[_LAT + n])
+        i = n // 2
+        wx, wy, wz = B[n, 0] - A[n, 0], B[n, 1] - A[n, 1], B[n, 2] - A[n, 2]
+        W[n, 0], W[n, 1], W[n, 2] = wx, wy, wz
+        lw[n] = np.sqrt(wx * wx + wy * wy + wz * wz)
+        sx, sy, sz = px - B[n, 0], py - B[n, 1], pz - B[n, 2]
+        M[n, 0], M[n, 1], M[n, 2] = wx, wy, wz
+        M[n, 3] = wy * sz - wz * sy
+        M[n, 4] = wz * sx - wx * sz
+        M[n, 5] = wx * sy - wy * sx
+        M[n, 6] = 0.0
+        M[n, 7] = 0.0
+        tx = px + ct * G[_C0 + 3 * k] - st * G[_C0 + 3 * k + 1] - B[n, 0]
+        ty = py + st * G[_C0 + 3 * k] + ct * G[_C0 + 3 * k + 1] - B[n, 1]
+        M[n, 6 + k] = wx * ty - wy * tx
+        ux, uy, uz = G[_U + 3 * i], G[_U + 3 * i + 1], G[_U + 3 * i + 2]
+        qx, qy, qz = G[_P + 3 * i] - A[n, 0], G[_P + 3 * i + 1] - A[n, 1], G[_P + 3 * i + 2] - A[n, 2]
+        g[n] = wx * (qy * uz - qz * uy) + wy * (qz * ux - qx * uz) + wz * (qx * uy - qy * ux)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _pose(px, py, pz, th, G, P, C, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e):
+    """One pose: fills K (8, 8), qo (4,), optionally T (4, 8, 8) and Jo (4, 4); returns
+    (condition, status). P (4, 3) and C (20,) are the actuator points and the spring compliances
+    of the packed G (:func:`_views`); the other arrays are scratch
+    (:func:`h4pin.stiffness.core.scratch`)."""
+    if not _inverse_geometry(px, py, pz, th, G, qo, A, B):
+        core.refuse(K, T, want_terms, Jo, want_jac)
+        return np.nan, 1
+    status = _limits_and_bars(th, G, qo, A, B)
+    _m1(px, py, pz, th, G, A, B, W, lw, M, g)
+    return core.finish(M, W, lw, A, P, g, C[0:4], C[4:8], C[8:12], C[12:20], model, status, K, T, want_terms, Jo,
+                       want_jac, Y, Gc, ws, d, e)
+
+
+@njit(cache=True, nogil=True)
+def _views(G):
+    """The actuator points P (4, 3) and the spring compliances (20,) of the packed G."""
+    return G[_P:_P + 12].reshape(4, 3), G[_CCTRL:_CTENS + 8]
+
+
+@njit(cache=True, nogil=True)
+def _one(x, G, model):
+    K = np.empty((8, 8))
+    q = np.empty(4)
+    T = np.empty((1, 4, 8, 8))
+    J = np.empty((1, 4, 4))
+    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+    P, C = _views(G)
+    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, K, q, T[0], False, J[0], False, A, B, W, lw, M, Y,
+                         Gc, ws, g, d, e)
+    return K, q, cond, status
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
+    n = poses.shape[0]
+    nblocks = (n + block - 1) // block
+    P, C = _views(G)
+    for bi in prange(nblocks):
+        A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+        for p in range(bi * block, min(n, (bi + 1) * block)):
+            tp = T[p] if want_terms else T[0]
+            jp = J[p] if want_jac else J[0]
+            c, s = _pose(poses[p, 0], poses[p, 1], poses[p, 2], poses[p, 3], G, P, C, model, K[p], q[p], tp,
+                         want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e)
+            cond[p] = c
+            status[p] = s
+
+
+# ----------------------------------------------------------------------------------------------
+# Python API
+
+
+class KernelResult(NamedTuple):
+    """Output of the kernel for N poses (SI).
+
+    K (N, 8, 8) of eq. 30 (NaN unless status is 0); q (N, 4) actuator angles, rad (NaN if
+    unreachable); condition (N,) scaled 1-norm condition number of M1; status (N,) int8 (see the
+    module docstring); terms (N, 4, 8, 8) control, bending, torsion, tension (or None);
+    J (N, 4, 4) = Jx^-1 Jq of eq. 8 (or None).
+    """
+
+    K: np.ndarray
+    q: np.ndarray
+    condition: np.ndarray
+    status: np.ndarray
+    terms: np.ndarray | None = None
+    J: np.ndarray | None = None
+
+
+def _empty(n: int, terms: bool, jacobian: bool) -> KernelResult:
+    return KernelResult(np.empty((n, 8, 8)), np.empty((n, 4)), np.empty(n), np.empty(n, dtype=np.int8),
+                        np.empty((n, 4, 8, 8)) if terms else None, np.empty((n, 4, 4)) if jacobian else None)
+
+
+def _check_out(out: KernelResult, n: int, terms: bool, jacobian: bool) -> KernelResult:
+    shapes = {"K": (n, 8, 8), "q": (n, 4), "condition": (n,), "status": (n,)}
+    if terms:
+        shapes["terms"] = (n, 4, 8, 8)
+    if jacobian:
+        shapes["J"] = (n, 4, 4)
+    for name, shape in shapes.items():
+        arr = getattr(out, name)
+        want = np.int8 if name == "status" else np.float64
+        if arr is None or arr.shape != shape or arr.dtype != want:
+            raise ParameterError(f"out.{name} must be a {np.dtype(want).name} array of shape {shape}")
+    return out
+
+
+def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
+                     terms: bool = False, jacobian: bool = False) -> KernelResult:
+    """K of eq. 30, q, the condition and the verdict at N poses, in parallel over the poses.
+
+    Args:
+        g: A geometry (see :func:`prepare`) or a :class:`Kernel`.
+        poses: (N, 4) or (4,) poses [x, y, z, theta] (m, rad).
+        model: ``"paper"`` or ``"consistent"`` (see :mod:`h4pin.stiffness.api`).
+        out: Arrays to fill (a :class:`KernelResult` of the right shapes, e.g. memory-mapped
+            files); allocated if None.
+        terms: Also return the four terms (4 x 512 bytes a pose more).
+        jacobian: Also return J = Jx^-1 Jq (eq. 8).
+
+    The number of threads is numba's (``numba.set_num_threads``).
+    """
+    kern = prepare(g)
+    code = _model_code(model)
+    x = as_poses(poses)
+    x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
+    n = len(x)
+    res = _empty(n, terms, jacobian) if out is None else _check_out(out, n, terms, jacobian)
+    T = res.terms if terms else np.empty((1, 4, 8, 8))
+    J = res.J if jacobian else np.empty((1, 4, 4))
+    if n:
+        _batch(x, kern.packed, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian, _BLOCK)
+    return res
+
+
+def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
+    """K (8, 8), q (4,), condition, status at one pose. Pass a :class:`Kernel` (:func:`prepare`)
+    for the fast path; a geometry object is packed at every call."""
+    return prepare(g)(pose, model)
+
+
+def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str = "paper", *, chunk: int = CHUNK,
+                    terms: bool = False, jacobian: bool = False) -> Iterator[tuple[int, KernelResult]]:
+    """Stream the kernel over many poses in chunks: yields ``(start, result)`` per chunk.
+
+    ``poses`` is an (N, 4) array (cut into ``chunk`` rows) or an iterable of (n, 4) arrays (each
+    one a chunk, e.g. generated on the fly). The result's arrays are reused from one chunk to
+    the next: reduce or copy them before asking for the next one. Memory stays at one chunk.
+    """
+    kern = prepare(g)
+    if chunk < 1:
+        raise ParameterError(f"chunk must be >= 1, got {chunk!r}")
+    if isinstance(poses, np.ndarray):
+        x = as_poses(poses)
+        x = x[None] if x.ndim == 1 else x
+        parts: Iterable[np.ndarray] = (x[s:s + chunk] for s in range(0, len(x), chunk))
+    else:
+        parts = poses
+    buf: KernelResult | None = None
+    start = 0
+    for part in parts:
+        n = len(part)
+        if buf is None or len(buf.K) < n:
+            buf = _empty(max(n, chunk), terms, jacobian)
+        view = KernelResult(*(None if a is None else a[:n] for a in buf))
+        yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian)
+        start += n
+
+
+def threads() -> int:
+    """numba's current number of threads for the batch kernel."""
+    return numba.get_num_threads()
+
+
+_KERNELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def for_geometry(g: H4Geometry) -> Kernel:
+    """The packed kernel of a loaded robot's geometry, made once per geometry (a read-only cache
+    keyed by the immutable :class:`h4pin.H4Geometry`, outside it; threads may share it)."""
+    kern = _KERNELS.get(g)
+    if kern is None:
+        kern = prepare(g)
+        _KERNELS[g] = kern
+    return kern
+
+
+def backend(h4, x: np.ndarray, model: str, terms: bool):
+    """The kernel as a backend of :func:`h4pin.compliance` (:class:`h4pin.stiffness.eq30.Raw`);
+    robots whose parallelograms are exact."""
+    from h4pin.stiffness.eq30 import Raw
+
+    res = compliance_batch(for_geometry(h4.geometry), x, model, terms=terms)
+    return Raw(res.K, res.terms, res.q, res.condition, res.status)

@@ -1,0 +1,389 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Design sweeps: the compliance of eq. 30 (Company, Pierrot, Fauroux, ICRA 2005) over many designs.
+
+A design is an :class:`h4pin.H4Params` with six numbers changed (:data:`VARIABLES`): the
+parallelogram half-width, the forearm and bar lengths, the actuator layout radius (a factor on
+the x, y of P), the plate size (a factor on the x, y of DB and DC) and the actuator stiffness kc.
+For each design, the compiled kernel (:mod:`h4pin.stiffness.kernel`) gives, over
+
+* the task workspace (a box of poses, :class:`Task`): whether every pose is reachable, within the
+  joint limits, bar-clear and regular (``reach_all``), and the worst compliance over it -- the
+  largest eigenvalue of the symmetric part of K_tt, m/N (``worst``);
+* a fixed, larger grid at theta = 0: the workspace volume, the count of poses with status 0
+  times the cell volume, m^3 (``volume``).
+
+The sweep runs locally (numba threads) or on Dask (``workers=N`` starts a LocalCluster,
+``scheduler=ADDRESS`` uses a running one). Results go to a zarr store, one zarr chunk per task
+of ``chunk`` designs, and a ``done`` flag per chunk written after its results: a killed sweep
+resumes where it stopped. Every number depends on its design only, so local and Dask runs agree
+exactly. See ``docs/scaling.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from h4pin import verdicts
+from h4pin.description.geometry import geometry_from_params
+from h4pin.description.params import H4Params
+from h4pin.errors import ParameterError
+from h4pin.files import make_readable, save_figure
+from h4pin.stiffness import kernel
+
+#: The design variables, in order: name -> (unit, meaning).
+VARIABLES = {
+    "half_width": ("m", "half the width h of each parallelogram"),
+    "r": ("m", "forearm length"),
+    "l": ("m", "bar length"),
+    "layout": ("1", "factor on the x, y of the actuator axis points P (layout radius)"),
+    "plate": ("1", "factor on the x, y of DB and DC (plate size)"),
+    "kc": ("N.m/rad", "actuator control stiffness"),
+}
+#: Default bounds of the design space (the prototype is inside).
+BOUNDS = {"half_width": (0.02, 0.05), "r": (0.2, 0.32), "l": (0.4, 0.6), "layout": (0.8, 1.25),
+          "plate": (0.9, 1.3), "kc": (4e3, 12e3)}
+
+
+@dataclasses.dataclass(frozen=True)
+class Task:
+    """A box of poses [x, y, z, theta]: ``centre`` +- ``half`` (m, rad), ``counts`` points per axis."""
+
+    centre: tuple[float, float, float, float] = (0.0, 0.0, -0.6, 0.0)
+    half: tuple[float, float, float, float] = (0.1, 0.1, 0.05, 0.3)
+    counts: tuple[int, int, int, int] = (5, 5, 5, 8)
+
+    def poses(self) -> np.ndarray:
+        axes = [np.linspace(c - h, c + h, n) if n > 1 else np.array([c])
+                for c, h, n in zip(self.centre, self.half, self.counts, strict=True)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 4)
+
+
+@dataclasses.dataclass(frozen=True)
+class VolumeGrid:
+    """The fixed grid (theta = 0) whose reachable cells measure the workspace volume: ``lo`` to
+    ``hi`` (m) with ``counts`` cell centres per axis."""
+
+    lo: tuple[float, float, float] = (-0.5, -0.5, -1.1)
+    hi: tuple[float, float, float] = (0.5, 0.5, -0.1)
+    counts: tuple[int, int, int] = (12, 12, 12)
+
+    @property
+    def cell(self) -> float:
+        """Volume of one cell, m^3."""
+        return float(np.prod([(h - l) / n for l, h, n in zip(self.lo, self.hi, self.counts, strict=True)]))
+
+    def poses(self) -> np.ndarray:
+        axes = [l + (np.arange(n) + 0.5) * (h - l) / n for l, h, n in zip(self.lo, self.hi, self.counts, strict=True)]
+        xyz = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        return np.concatenate([xyz, np.zeros((len(xyz), 1))], axis=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Spec:
+    """Everything that fixes the numbers of a sweep (stored with the results, checked on resume)."""
+
+    n_designs: int = 1000
+    seed: int = 0
+    bounds: dict = dataclasses.field(default_factory=lambda: dict(BOUNDS))
+    task: Task = Task()
+    volume: VolumeGrid = VolumeGrid()
+    model: str = "consistent"
+    chunk: int = 64
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> Spec:
+        d = json.loads(text)
+        d["task"] = Task(**{k: tuple(v) for k, v in d["task"].items()})
+        d["volume"] = VolumeGrid(**{k: tuple(v) for k, v in d["volume"].items()})
+        d["bounds"] = {k: tuple(v) for k, v in d["bounds"].items()}
+        return cls(**d)
+
+    def __post_init__(self) -> None:
+        if self.n_designs < 1:
+            raise ParameterError(f"n_designs must be >= 1, got {self.n_designs!r}")
+        if self.chunk < 1:
+            raise ParameterError(f"chunk must be >= 1, got {self.chunk!r}")
+        if set(self.bounds) != set(VARIABLES):
+            raise ParameterError(f"bounds must give {tuple(VARIABLES)}, got {tuple(self.bounds)}")
+        object.__setattr__(self, "bounds", {k: tuple(float(v) for v in self.bounds[k]) for k in VARIABLES})
+        kernel._model_code(self.model)
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.n_designs // self.chunk)
+
+
+def designs(spec: Spec) -> np.ndarray:
+    """The design table (n_designs, 6), columns :data:`VARIABLES`: the first n_designs points of
+    a scrambled Sobol sequence (seeded, 2^m points drawn) over the bounds."""
+    from scipy.stats import qmc
+
+    m = max(0, int(np.ceil(np.log2(spec.n_designs))))
+    unit = qmc.Sobol(len(VARIABLES), scramble=True, seed=spec.seed).random_base2(m)[:spec.n_designs]
+    lo = np.array([spec.bounds[k][0] for k in VARIABLES])
+    hi = np.array([spec.bounds[k][1] for k in VARIABLES])
+    return lo + unit * (hi - lo)
+
+
+def params_of(row: np.ndarray, base: H4Params | None = None) -> H4Params:
+    """The :class:`h4pin.H4Params` of one design row (raises ParameterError if it is invalid,
+    e.g. ball joints colliding on the plate)."""
+    base = base or H4Params()
+    h, r, l, layout, plate, kc = (float(v) for v in row)
+    xy = np.array([[1.0], [1.0], [0.0]])
+    P = base.P * (1 + (layout - 1) * xy)
+    DB = base.DB * (1 + (plate - 1) * xy)
+    DC = base.DC * (1 + (plate - 1) * xy)
+    return base.replace(half_width=h, r=r, l=l, P=P, DB=DB, DC=DC, kc=kc)
+
+
+def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
+    """Results of some designs: ``valid``, ``reach_all``, ``worst`` (m/N), ``volume`` (m^3),
+    ``task_ok`` (count of task poses with status 0)."""
+    import numba
+
+    if threads is not None:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    task, grid = spec.task.poses(), spec.volume.poses()
+    poses = np.ascontiguousarray(np.concatenate([task, grid]))
+    n = len(rows)
+    out = {"valid": np.zeros(n, bool), "reach_all": np.zeros(n, bool), "worst": np.full(n, np.nan),
+           "volume": np.full(n, np.nan), "task_ok": np.zeros(n, np.int32)}
+    buf = kernel._empty(len(poses), False, False)
+    for d, row in enumerate(rows):
+        try:
+            kern = kernel.prepare(geometry_from_params(params_of(row)))
+        except ParameterError:
+            continue
+        res = kernel.compliance_batch(kern, poses, spec.model, buf)
+        ok = res.status[:len(task)] == verdicts.OK
+        out["valid"][d] = True
+        out["task_ok"][d] = ok.sum()
+        out["reach_all"][d] = ok.all()
+        if ok.any():
+            ktt = res.K[:len(task)][ok, :3, :3]
+            out["worst"][d] = np.linalg.eigvalsh(0.5 * (ktt + np.swapaxes(ktt, 1, 2)))[:, 2].max()
+        out["volume"][d] = np.count_nonzero(res.status[len(task):] == verdicts.OK) * spec.volume.cell
+    return out
+
+
+def _chunk_task(spec_json: str, c: int, threads: int | None) -> tuple[int, dict[str, np.ndarray]]:
+    spec = Spec.from_json(spec_json)
+    rows = designs(spec)[c * spec.chunk:(c + 1) * spec.chunk]
+    return c, evaluate(rows, spec, threads)
+
+
+_RESULTS = {"valid": ("bool", False), "reach_all": ("bool", False), "worst": ("float64", np.nan),
+            "volume": ("float64", np.nan), "task_ok": ("int32", 0)}
+
+
+def _open_store(path: Path, spec: Spec):
+    import zarr
+
+    if path.exists():
+        group = zarr.open_group(str(path), mode="a")
+        stored = group.attrs.get("spec")
+        if stored is None or Spec.from_json(stored) != spec:
+            raise ParameterError(f"path: {path} holds a different sweep (spec {stored}); use another path")
+        return group
+    group = zarr.open_group(str(path), mode="w")
+    create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
+    table = designs(spec)
+    arr = create("designs", shape=table.shape, chunks=(spec.chunk, table.shape[1]), dtype="float64")
+    arr[:] = table
+    for name, (dtype, fill) in _RESULTS.items():
+        create(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
+    create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
+    group.attrs["variables"] = list(VARIABLES)
+    group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3"}
+    group.attrs["spec"] = spec.to_json()  # written last: a store without it is not a sweep yet
+    return group
+
+
+def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: str | None = None,
+        threads: int | None = None, stop_after: int | None = None, progress: bool = True) -> dict[str, np.ndarray]:
+    """Run (or resume) the sweep ``spec`` into the zarr store ``path``; returns :func:`load`.
+
+    Args:
+        workers: Start a Dask LocalCluster with this many single-threaded workers.
+        scheduler: Address of a running Dask scheduler (``tcp://host:8786``).
+        threads: numba threads per task (default: all locally, 1 on Dask workers).
+        stop_after: Stop after this many chunks (to test resuming).
+        progress: tqdm progress bar over the chunks.
+    """
+    from tqdm import tqdm
+
+    if workers is not None and scheduler is not None:
+        raise ParameterError("give workers or scheduler, not both")
+    path = Path(path)
+    group = _open_store(path, spec)
+    done = group["done"][:]
+    todo = [c for c in range(spec.n_chunks) if not done[c]]
+    if stop_after is not None:
+        todo = todo[:stop_after]
+    text = spec.to_json()
+
+    def write(c: int, res: dict[str, np.ndarray]) -> None:
+        sl = slice(c * spec.chunk, min(spec.n_designs, (c + 1) * spec.chunk))
+        for name in _RESULTS:
+            group[name][sl] = res[name]
+        group["done"][c] = True  # after the results: a chunk killed half-way is done again
+
+    bar = tqdm(total=len(todo), desc="sweep", unit="chunk", disable=not progress)
+    if workers is None and scheduler is None:
+        for c in todo:
+            write(*_chunk_task(text, c, threads))
+            bar.update()
+    else:
+        with _client(workers, scheduler) as client:
+            from distributed import as_completed
+
+            futures = [client.submit(_chunk_task, text, c, threads or 1, pure=False) for c in todo]
+            for future in as_completed(futures):
+                write(*future.result())
+                bar.update()
+    bar.close()
+    make_readable(path)
+    return load(path)
+
+
+class _client:
+    """A Dask client on a new LocalCluster (closed on exit) or on a running scheduler."""
+
+    def __init__(self, workers: int | None, scheduler: str | None):
+        self.workers, self.scheduler = workers, scheduler
+
+    def __enter__(self):
+        from distributed import Client, LocalCluster
+
+        if self.scheduler is not None:
+            self.cluster = None
+            self.client = Client(self.scheduler)
+        else:
+            self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+        return self.client
+
+    def __exit__(self, *exc: object) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def load(path: str | Path) -> dict[str, np.ndarray]:
+    """The sweep's arrays (``designs``, the results, ``done``) and its ``spec``."""
+    import zarr
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no sweep at {path}")
+    group = zarr.open_group(str(path), mode="r")
+    out: dict[str, Any] = {name: group[name][:] for name in ("designs", *_RESULTS, "done")}
+    out["spec"] = Spec.from_json(group.attrs["spec"])
+    return out
+
+
+def pareto(res: dict[str, np.ndarray]) -> np.ndarray:
+    """Indices of the designs that reach the whole task and are Pareto-optimal (no other such
+    design is both stiffer -- smaller ``worst`` -- and larger in ``volume``), by rising ``worst``."""
+    cand = np.flatnonzero(res["reach_all"] & np.isfinite(res["worst"]))
+    cand = cand[np.lexsort((-res["volume"][cand], res["worst"][cand]))]
+    front, best = [], -np.inf
+    for d in cand:
+        if res["volume"][d] > best:
+            front.append(d)
+            best = res["volume"][d]
+    return np.array(front, dtype=int)
+
+
+def write_best(res: dict[str, np.ndarray], folder: str | Path, k: int = 3) -> list[Path]:
+    """URDF variants of up to ``k`` Pareto designs (stiffest, largest and one between):
+    ``h4_sweep_<index>.urdf`` in ``folder``, loadable by :func:`h4pin.load`."""
+    from h4pin.description.urdf import write_urdf
+
+    front = pareto(res)
+    if front.size == 0:
+        raise ParameterError("no design reaches the whole task workspace")
+    pick = front[np.unique(np.linspace(0, front.size - 1, min(k, front.size)).round().astype(int))]
+    return [write_urdf(params_of(res["designs"][d]), Path(folder) / f"h4_sweep_{d}.urdf") for d in pick]
+
+
+def plot_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
+    """Worst compliance over the task against workspace volume, front highlighted (PNG)."""
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    ax = fig.subplots()
+    ok = res["reach_all"]
+    vol, worst = res["volume"] * 1e3, res["worst"] * 1e6
+    ax.scatter(vol[~ok & res["valid"]], worst[~ok & res["valid"]], s=4, c="0.75",
+               label="misses part of the task workspace (worst over the reached part)")
+    ax.scatter(vol[ok], worst[ok], s=6, c="tab:blue", label="reaches the whole task workspace")
+    front = pareto(res)
+    if front.size:
+        ax.plot(vol[front], worst[front], "o-", c="tab:red", ms=4, label="Pareto front")
+    spec = res["spec"]
+    p = H4Params()
+    proto = evaluate(np.array([[p.half_width[0], p.r[0], p.l[0], 1.0, 1.0, p.kc[0]]]), spec)
+    ax.plot(proto["volume"] * 1e3, proto["worst"] * 1e6, "k*", ms=12, label="prototype")
+    ax.set_yscale("log")
+    ax.set_xlabel("workspace volume at theta = 0 [dm^3]")
+    ax.set_ylabel("worst compliance over the task box [um/N]")
+    ax.set_title(f"{spec.n_designs} designs, {len(spec.task.poses())} task poses, model '{spec.model}'", fontsize=9)
+    ax.legend(fontsize=7)
+    return save_figure(fig, path, dpi=110)
+
+
+def _noop(x: int) -> int:
+    return x
+
+
+def dask_overhead(workers: int = 2, n: int = 400, client: Any = None) -> float:
+    """Worker-seconds lost per task on Dask: the wall time of ``n`` empty tasks times the
+    number of workers, over ``n`` (each task also pays its result's transfer, a few KB here)."""
+    with _client(workers, None) if client is None else _nullcontext(client) as c:
+        c.gather(c.map(_noop, range(50), pure=False))  # warm up
+        t0 = time.perf_counter()
+        c.gather(c.map(_noop, range(n), pure=False))
+        wall = time.perf_counter() - t0
+        n_workers = len(c.scheduler_info()["workers"])
+    return wall * n_workers / n
+
+
+class _nullcontext:
+    def __init__(self, value: Any):
+        self.value = value
+
+    def __enter__(self) -> Any:
+        return self.value
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
+def bench(n_designs: int = 10_000, threads: int = 1, workers: int | None = None, n_poses: int = 1000,
+          timer: Callable[[], float] = time.perf_counter) -> tuple[float, int]:
+    """Seconds for a sweep of ``n_designs`` x ``n_poses`` task poses (plus the volume grid) in a
+    temporary store, and the number of design-poses evaluated (task + volume grid)."""
+    import tempfile
+
+    spec = Spec(n_designs=n_designs, chunk=max(1, min(256, n_designs // 8 or 1)))
+    if len(spec.task.poses()) != n_poses:
+        raise ParameterError(f"n_poses: the default task box has {len(spec.task.poses())} poses, not {n_poses}")
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = timer()
+        run(Path(tmp) / "s.zarr", spec, workers=workers, threads=threads, progress=False)
+        secs = timer() - t0
+    return secs, n_designs * (len(spec.task.poses()) + len(spec.volume.poses()))
