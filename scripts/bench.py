@@ -27,6 +27,7 @@ import numpy as np
 import h4pin
 from h4pin import verdicts
 from h4pin.checks import deformed, statics
+from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.description.params import LEG_LATERAL, H4Params
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.stiffness import kernel
@@ -174,6 +175,10 @@ def main() -> None:
     t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
     t_kernel, t_one = kernel_rows(h4, poses, args.repeat)
+    with_el = h4.with_elements(ILLUSTRATIVE)
+    t_el_batch = best_of(args.repeat, lambda: compliance(with_el, few, "paper")) / n_single
+    t_el_single = best_of(args.repeat, lambda: [compliance(with_el, x, "paper") for x in few[:500]]) / 500
+    t_atlas = atlas_row(h4, args.repeat)
 
     ours = compliance(h4, few[:50], "paper", method="closed_form").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])
@@ -198,6 +203,9 @@ def main() -> None:
         ("h4pin.compliance(h4, poses): default batch path", t_default),
         ("h4pin.compliance(h4, pose): default one-pose path", t_single),
         ("h4pin.compliance(h4, pose, method='pinocchio')", t_single_pin),
+        ("h4pin.compliance, robot with all 11 elements, batch", t_el_batch),
+        ("h4pin.compliance, robot with all 11 elements, one pose", t_el_single),
+        ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t_atlas),
         ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t_naive),
         ("validation: Newton-Euler statics route", t_statics),
         ("validation: finite-difference route (non-linear)", t_fd),
@@ -246,6 +254,17 @@ def main() -> None:
                 print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
     if args.tolerance:
         bench_tolerance()
+
+
+def atlas_row(h4: h4pin.H4, repeat: int) -> float:
+    """Seconds per pose of :func:`h4pin.studies.atlas.atlas` over a 500 x 500 x 3 grid at the centre."""
+    from h4pin.studies import atlas
+
+    c = centre_pose(h4)
+    xs = np.linspace(-0.2, 0.2, 500)
+    atlas.atlas(h4, xs[:10], xs[:10], [c[2]], progress=False)
+    zs = [c[2] - 0.05, c[2], c[2] + 0.05]
+    return best_of(repeat, lambda: atlas.atlas(h4, xs, xs, zs, progress=False)) / (500 * 500 * 3)
 
 
 def bench_tolerance(n_robots: int = 10_000, n_poses: int = 100) -> None:

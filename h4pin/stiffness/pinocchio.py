@@ -124,7 +124,7 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
             res = kernel.compliance_batch(kern, x, model)
             q, status0 = res.q, res.status
         status = np.where(status0 == SINGULAR, OK, status0).astype(np.int8)
-        states = cf.rigid_state(x, q)
+        states = _rigid_states(x, q)
     else:
         sol = cf.solve(g, x)
         status = np.asarray(sol.status, dtype=np.int8).copy()
@@ -134,7 +134,7 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
     out = np.full((n, 4, 8, 8), np.nan) if terms else None
     code, d = MODELS.index(model), h4.data
     for k in np.flatnonzero(status == OK):
-        st = cf.PlateState(*(a[k] for a in states))
+        st = states[k] if isinstance(states, list) else cf.PlateState(*(a[k] for a in states))
         K, T, c, s, _ = _at_state(h4, st, code, terms, d)
         cond[k], status[k] = c, s
         if s == OK:
@@ -142,6 +142,16 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
             if out is not None:
                 out[k] = T
     return Raw(matrix, out, q, cond, status)
+
+
+def _rigid_states(x: np.ndarray, q: np.ndarray) -> list[cf.PlateState]:
+    """:func:`h4pin.kinematics.closed_form.rigid_state` pose by pose (cheaper for a few poses)."""
+    out = []
+    for xk, qk in zip(x, q, strict=True):
+        c, s = math.cos(xk[3]), math.sin(xk[3])
+        out.append(cf.PlateState(qk, xk[:3], np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+                                 np.array([-xk[3], -xk[3]])))
+    return out
 
 
 def _at_state(h4, st: cf.PlateState, code: int, want_terms: bool, d: pin.Data):
