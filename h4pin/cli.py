@@ -22,7 +22,7 @@ import typer
 
 from h4pin.errors import H4Error
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, rich_markup_mode=None,
                   help="The H4 parallel robot on Pinocchio and its stiffness (Company et al., ICRA 2005).")
 
 
@@ -138,12 +138,15 @@ def view(
         fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
     if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
         fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
+    from h4pin.files import check_output
+    from h4pin.io import meshcat_server, viewer
+
     if html is not None:
         if html.is_dir():
             fail(f"--html {html} is a folder: give the path of the page to write, e.g. {html / 'h4.html'}")
-        if not html.parent.is_dir():
-            fail(f"--html {html}: folder {html.parent} does not exist")
-    from h4pin.io import viewer
+        check_output(html, "--html")
+    else:
+        meshcat_server.check_host(host)
 
     h4 = load_robot(variant, urdf)
     scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
@@ -184,6 +187,7 @@ def tolerance(
 ) -> None:
     """Tolerance study: compliance and static pose error of robots with manufacturing errors."""
     from h4pin.errors import ParameterError
+    from h4pin.files import check_output
     from h4pin.studies import tolerance as tol
 
     sigmas: dict[str, float] = {}
@@ -193,8 +197,10 @@ def tolerance(
             raise ParameterError(f"--sigma must be NAME=METRES, got {item!r}")
         sigmas[name.strip()] = value  # type: ignore[assignment]  # checked by tol.check_sigmas
     sigmas = tol.check_sigmas(sigmas)
-    if figure is not None and not figure.parent.is_dir():
-        fail(f"cannot write {figure}: folder {figure.parent} does not exist")
+    if figure is not None:
+        check_output(figure, "--figure", suffixes=(".png",))
+    if robots < 1:
+        fail(f"--robots must be >= 1, got {robots}")
     h4 = load_robot(variant, urdf)
     res = tol.study(h4, n_robots=robots, sigmas=sigmas, seed=seed, model=model, progress=True)
     sens = tol.sensitivity(h4, n_robots=min(robots, 1000), sigmas=sigmas, seed=seed, model=model) if sensitivity \
@@ -211,12 +217,10 @@ def export(
     urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
 ) -> None:
     """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors)."""
+    from h4pin.files import check_output
     from h4pin.io.mjcf import write_mjcf
 
-    if mjcf.is_dir():
-        fail(f"cannot write {mjcf}: it is a folder")
-    if not mjcf.parent.is_dir():
-        fail(f"cannot write {mjcf}: folder {mjcf.parent} does not exist")
+    check_output(mjcf, "--mjcf")
     h4 = load_robot(variant, urdf)
     try:
         typer.echo(f"wrote {write_mjcf(h4, mjcf)}")
@@ -241,11 +245,20 @@ def atlas(
     """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability."""
     import numpy as np
 
+    from h4pin.files import check_output
     from h4pin.kinematics.closed_form import centre_pose
     from h4pin.studies import atlas as atlas_module
 
     if z and z_range:
         fail("give --z or --z-range, not both")
+    for name, axis in (("--x", x), ("--y", y), ("--z-range", z_range)):
+        if axis is not None and axis[2] < 1:
+            fail(f"{name} LO HI N needs N >= 1, got {axis[2]}")
+    atlas_module.check_out(out, "--out")
+    if figures is not None:
+        check_output(figures / "atlas_status.png", "--figures")
+    n_z = z_range[2] if z_range else max(len(z or []), 1)
+    atlas_module.check_memory(x[2] * y[2] * n_z * max(len(theta or []), 1))
     h4 = load_robot(variant, urdf)
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
@@ -276,9 +289,19 @@ def sweep(
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """Design sweep: which designs reach the task box, their worst compliance and workspace volume."""
+    from h4pin.files import check_output
     from h4pin.studies import sweep as sweep_module
 
     spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model)
+    sweep_module.check_store(out, "--out")
+    if pareto is not None:
+        check_output(pareto, "--pareto", suffixes=(".png",))
+    if urdf_dir is not None:
+        if not urdf_dir.is_dir():
+            fail(f"--urdf-dir: folder {urdf_dir} does not exist")
+        check_output(urdf_dir / "h4_sweep.urdf", "--urdf-dir")
+    if workers is not None and workers < 1:
+        fail(f"--workers must be >= 1 (Dask workers), got {workers}")
     res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
     front = sweep_module.pareto(res)
     typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
@@ -288,16 +311,28 @@ def sweep(
     if pareto is not None:
         typer.echo(f"wrote {sweep_module.plot_pareto(res, pareto)}")
     if urdf_dir is not None:
-        if not urdf_dir.is_dir():
-            fail(f"--urdf-dir: folder {urdf_dir} does not exist")
         for path in sweep_module.write_best(res, urdf_dir):
             typer.echo(f"wrote {path}")
+
+
+COMPUTING = ("table2", "view", "tolerance", "atlas", "sweep")
+
+
+def note_first_compile(argv: list[str]) -> None:
+    """Say so on stderr before a command whose first run compiles the kernels."""
+    if argv and argv[0] in COMPUTING and "--help" not in argv:
+        from h4pin.stiffness import kernel
+
+        if not kernel.cached():
+            typer.echo("h4pin: first run: compiling the compliance kernels (10-30 s, once; cached afterwards)",
+                       err=True)
 
 
 def main() -> None:
     """Entry point of the ``h4pin`` console script: errors are one line and exit status 2."""
     try:
         check_arity(sys.argv[1:])
+        note_first_compile(sys.argv[1:])
         code = app(standalone_mode=False)
     except (H4Error, ValueError, FileNotFoundError) as exc:
         typer.echo(f"error: {exc}", err=True)

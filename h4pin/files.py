@@ -1,14 +1,90 @@
 # SPDX-License-Identifier: Apache-2.0
 """Files h4pin writes: atomically (a temporary file in the same folder, then a rename, so a
-failure never leaves a half-written file) and world-readable (mode 0644)."""
+failure never leaves a half-written file) and world-readable (mode 0644).
+
+Every temporary file or folder is named ``.<name>.h4pin-tmp-<pid>-<random>`` beside its target;
+one left by a process that was killed (its pid is gone) is removed the next time anything is
+written to that target (:func:`clean_stale`). :func:`check_output` refuses an output path that
+cannot be written, before any work is done.
+
+The rule for existing outputs: a file is replaced (atomically); a folder is never replaced or
+written into unless it is a store h4pin made for the same job (a sweep resumes its own store).
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from h4pin.errors import ParameterError
+
+TMP_TAG = "h4pin-tmp"
+
+
+def tmp_prefix(path: Path) -> str:
+    """The prefix of this process's temporary files for ``path``."""
+    return f".{path.name}.{TMP_TAG}-{os.getpid()}-"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean_stale(path: str | Path) -> list[Path]:
+    """Remove the temporary files and folders that killed processes left for ``path``; returns them."""
+    path = Path(path)
+    pattern = re.compile(re.escape(f".{path.name}.{TMP_TAG}-") + r"(\d+)-")
+    removed = []
+    if not path.parent.is_dir():
+        return removed
+    for entry in path.parent.iterdir():
+        m = pattern.match(entry.name)
+        if m and not _alive(int(m.group(1))):
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+            removed.append(entry)
+    return removed
+
+
+def check_output(path: str | Path, what: str, *, folder: bool = False, suffixes: tuple[str, ...] = ()) -> Path:
+    """Refuse, before any work, an output that cannot be written: a wrong suffix, a missing or
+    unwritable folder (tried by writing a probe file there), a folder where a file is wanted
+    (``folder=False``) or a file where a folder is wanted. ``what`` names the option or argument
+    in the message (:class:`h4pin.ParameterError`)."""
+    path = Path(path)
+    if suffixes and path.suffix not in suffixes:
+        raise ParameterError(f"{what} {path}: the name must end in {' or '.join(suffixes)}")
+    if not folder and path.is_dir():
+        raise ParameterError(f"{what} {path} is a folder: give the path of the file to write")
+    if folder and path.exists() and not path.is_dir():
+        raise ParameterError(f"{what} {path} is a file: give the path of a folder")
+    parent = path.parent
+    if not parent.is_dir():
+        raise ParameterError(f"{what} {path}: folder {parent} does not exist")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=tmp_prefix(path), dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = os.strerror(exc.errno) if exc.errno else str(exc)
+        if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+            reason += " (read-only?)"
+        raise ParameterError(f"{what} {path}: cannot write in {parent}: {reason}") from None
+    return path
 
 
 def write_atomic(path: str | Path, write: Callable[[str], Any], suffix: str = "") -> Path:
@@ -23,7 +99,8 @@ def write_atomic(path: str | Path, write: Callable[[str], Any], suffix: str = ""
         raise IsADirectoryError(f"{path} is a folder")
     if not path.parent.is_dir():
         raise FileNotFoundError(f"no folder {path.parent} to write {path.name} in")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    clean_stale(path)
+    fd, tmp = tempfile.mkstemp(prefix=tmp_prefix(path), suffix=suffix or path.suffix, dir=path.parent)
     os.close(fd)
     try:
         write(tmp)

@@ -113,5 +113,5 @@ def test_export_cli_bad_path_is_one_line(tmp_path, where):
     out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--mjcf", str(tmp_path / where)],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 2
-    assert out.stderr.count("\n") == 1 and out.stderr.startswith("error: cannot write")
+    assert out.stderr.count("\n") == 1 and out.stderr.startswith("error: --mjcf ")
     assert list(tmp_path.iterdir()) == []

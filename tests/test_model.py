@@ -82,7 +82,7 @@ def test_springs_per_element_and_at_load(centre):
     assert rel(compliance(stiffer, centre, "consistent").matrix, expected) < 1e-12
     with pytest.raises(h4pin.ParameterError, match="unknown field"):
         h4pin.load("prototype", springs={"kc2": 1.0})
-    with pytest.raises(h4pin.MalformedURDFError, match="'kc'.*not physical"):
+    with pytest.raises(h4pin.ParameterError, match=r"springs\['kc'\].*actuator_2.*not physical"):
         h4pin.load("prototype", springs={"kc": [1.0, -1.0, 1.0, 1.0]})
 
 

@@ -162,7 +162,7 @@ def check_written_files(folder: Path) -> None:
 def test_the_readme_has_what_these_tests_check():
     """The rules above find the README's blocks (a rewrite that breaks them fails here)."""
     assert [b for b in ALL if b.lang == "python"], "no ```python block"
-    assert any(c.text == "h4pin table2" for c in console_commands()), "no `$ h4pin table2` sample"
+    assert any(c.text == ".venv/bin/h4pin table2" for c in console_commands()), "no `$ .venv/bin/h4pin table2` sample"
     runnable = [c for c in shell_commands() if any(argv(s)[0] for s in c.text.split("&&"))]
     assert len(runnable) >= 3
 

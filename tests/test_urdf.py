@@ -77,7 +77,7 @@ def _mutate(old: str, new: str, count: int = 1) -> str:
          "unknown link 'nowhere'"),
         (_mutate('<h4_actuator kc="7400.0"/>', ""), "'kc' of the actuated joint 'actuator_1'"),
         (_mutate('<link name="D"/>', '<link name="E"/>').replace('<child link="D"/>', '<child link="E"/>'),
-         "frame D is missing"),
+         "not an H4: it has no frame D"),
         (_mutate(' Eb="200000000000.0"', ""), "'Eb' of the bar link 'bar_11'"),
         (_mutate(' Sb="2.8e-05"', ' Sb="-2.8e-05"', 3), "bar link 'bar_11'.*'Sb' = -2.8e-05"),
         (_mutate('<h4pin format="2" units="SI"/>', '<h4pin format="2" units="mm"/>'), "only SI"),

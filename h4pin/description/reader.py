@@ -30,6 +30,10 @@ from h4pin.description.params import PER_LEG, SPRINGS, H4Params
 from h4pin.description.urdf import SPRING_ELEMENTS, URDFExtras, parse
 from h4pin.errors import MalformedURDFError, ParameterError
 
+#: Frames every H4 URDF has (the optional P_i, A_i, B_i are checked when present).
+H4_FRAMES = (*(f"A_{i}{j}" for i in range(1, 5) for j in (1, 2)), *(f"B_{i}{j}" for i in range(1, 5) for j in (1, 2)),
+             "C_1", "C_2", "D")
+
 
 class Index(NamedTuple):
     """Where the H4's parts sit in its Pinocchio model (read once, read-only).
@@ -102,12 +106,20 @@ class _Reader:
         self.extras: URDFExtras = parse(urdf_text, source)
         try:
             self.model = pin.buildModelFromXML(urdf_text)
+        except (RuntimeError, ValueError) as exc:
+            raise MalformedURDFError(f"{source}: Pinocchio cannot load it ({exc})") from None
+        self.frames = {f.name: i for i, f in enumerate(self.model.frames)}
+        missing = [n for n in H4_FRAMES if n not in self.frames]
+        if missing:
+            raise MalformedURDFError(f"{source}: not an H4: it has no frame {', '.join(missing[:4])}"
+                                     f"{' ...' if len(missing) > 4 else ''} (an H4 URDF names A_ij, B_ij, C_k and D; "
+                                     "see the README, 'Describe your own H4')")
+        try:
             self.visual_model = pin.buildGeomFromUrdfString(self.model, urdf_text, pin.GeometryType.VISUAL)
             self.collision_model = pin.buildGeomFromUrdfString(self.model, urdf_text, pin.GeometryType.COLLISION)
         except (RuntimeError, ValueError) as exc:
-            raise MalformedURDFError(f"{source}: Pinocchio cannot load it ({exc})") from None
+            raise MalformedURDFError(f"{source}: Pinocchio cannot load its geometry ({exc})") from None
         self.data = self.model.createData()
-        self.frames = {f.name: i for i, f in enumerate(self.model.frames)}
         self.q0 = pin.neutral(self.model)
         pin.framesForwardKinematics(self.model, self.data, self.q0)
         pin.computeJointJacobians(self.model, self.data, self.q0)
@@ -324,6 +336,13 @@ class _Reader:
                 except (TypeError, ValueError):
                     raise ParameterError(f"springs['{name}'] must be a number or {values.size} numbers, got "
                                          f"{override[name]!r}") from None
+                bad = ~np.isfinite(values) | (values <= 0) | ((values > 1) if name == "forearm_stressed_fraction"
+                                                              else False)
+                if np.any(bad):
+                    k = int(np.argmax(bad))
+                    limit = ", at most 1" if name == "forearm_stressed_fraction" else ""
+                    raise ParameterError(f"springs['{name}'] = {override[name]!r}: the value for {owners[name][k]} "
+                                         f"({float(values[k])!r}) is not physical (must be finite and > 0{limit})")
             missing = np.flatnonzero(np.isnan(values))
             if missing.size:
                 tag = {"kc": "h4_actuator"}.get(name, "h4_forearm" if name in PER_LEG else "h4_bar")

@@ -388,6 +388,66 @@ def _floats(text: str, n: int, where: str, what: str) -> np.ndarray:
     return v
 
 
+def _check_tree(root: ET.Element, where: str) -> None:
+    """The checks Pinocchio's URDF parser would fail on with a bare message (or pass silently):
+    duplicate link or joint names, origins, axes, limits and inertias that are not finite and
+    physical. Each error names the element."""
+    for kind in ("link", "joint"):
+        seen: set[str] = set()
+        for elem in root.findall(kind):
+            name = _attr(elem, "name", where, f"a <{kind}>")
+            if name in seen:
+                raise MalformedURDFError(f"{where}: two <{kind}> elements are named '{name}'")
+            seen.add(name)
+    links = {elem.get("name") for elem in root.findall("link")}
+    for j in root.findall("joint"):
+        for side in ("parent", "child"):
+            ref = j.find(side)
+            link = None if ref is None else ref.get("link")
+            if link not in links:
+                raise MalformedURDFError(f"{where}: joint '{j.get('name')}' names {side} link '{link}', which is not a "
+                                         "<link> of the file")
+    for parent in root.iter():
+        for elem in parent:
+            if elem.tag == "origin" or elem.tag.endswith("_origin"):
+                for key in ("xyz", "rpy"):
+                    if elem.get(key) is not None:
+                        _floats(elem.get(key), 3, where, f"<{elem.tag} {key}> in <{parent.tag}> "
+                                f"'{parent.get('name') or '?'}'")
+    for j in root.findall("joint"):
+        name, kind = j.get("name"), j.get("type")
+        axis = j.find("axis")
+        if kind in ("revolute", "continuous", "prismatic") and axis is not None:
+            a = _floats(axis.get("xyz", "1 0 0"), 3, where, f"<axis xyz> of joint '{name}'")
+            if not np.linalg.norm(a) > 1e-9:
+                raise MalformedURDFError(f"{where}: joint '{name}' has a zero <axis xyz=\"{axis.get('xyz')}\">")
+        limit = j.find("limit")
+        if limit is not None and kind in ("revolute", "prismatic"):
+            lo = _floats(limit.get("lower", "0"), 1, where, f"<limit lower> of joint '{name}'")[0]
+            hi = _floats(limit.get("upper", "0"), 1, where, f"<limit upper> of joint '{name}'")[0]
+            if lo > hi:
+                raise MalformedURDFError(f"{where}: joint '{name}' has <limit lower=\"{lo:g}\"> above upper=\"{hi:g}\"")
+    for link in root.findall("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        name = link.get("name")
+        mass = inertial.find("mass")
+        if mass is not None:
+            m = _floats(mass.get("value", "0"), 1, where, f"<mass value> of link '{name}'")[0]
+            if m < 0:
+                raise MalformedURDFError(f"{where}: link '{name}' has a negative <mass value=\"{m:g}\">")
+        inertia = inertial.find("inertia")
+        if inertia is not None:
+            keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+            v = {k: _floats(inertia.get(k, "0"), 1, where, f"<inertia {k}> of link '{name}'")[0] for k in keys}
+            tensor = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
+                               [v["ixz"], v["iyz"], v["izz"]]])
+            if np.linalg.eigvalsh(tensor).min() < -1e-12 * max(np.abs(tensor).max(), 1e-300):
+                raise MalformedURDFError(f"{where}: link '{name}' has an <inertia> that is not positive "
+                                         "semi-definite")
+
+
 def parse(text: str, where: str = "URDF") -> URDFExtras:
     """Read and check the custom elements of an H4 URDF: closures, spring data, format.
 
@@ -408,6 +468,7 @@ def parse(text: str, where: str = "URDF") -> URDFExtras:
         if marker.get("units", "SI") != "SI":
             raise MalformedURDFError(f"{where}: <h4pin units=\"{marker.get('units')}\">: only SI (m, N, Pa) is "
                                      "supported")
+    _check_tree(root, where)
     closures, names = [], set()
     for c in root.findall("constraint"):
         name = _attr(c, "name", where, "a <constraint>")

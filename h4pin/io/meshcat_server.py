@@ -74,6 +74,28 @@ def main(argv: list[str] | None = None) -> None:
     bridge.run()
 
 
+def check_host(host: str) -> None:
+    """Refuse, at once, an interface this machine cannot listen on (an invalid address, a name
+    that does not resolve, another machine's address): one bind on port 0, no port scan.
+
+    Raises:
+        h4pin.ParameterError: naming the host and the reason.
+    """
+    import socket
+
+    from h4pin.errors import ParameterError
+
+    try:
+        infos = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
+        family, kind, proto, _, address = infos[0]
+        with socket.socket(family, kind, proto) as sock:
+            sock.bind(address)
+    except (OSError, UnicodeError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise ParameterError(f"--host {host}: this machine cannot listen there ({reason}); give one of its "
+                             "addresses, e.g. 127.0.0.1 (this machine only) or 0.0.0.0 (every interface)") from None
+
+
 def start(host: str = LOCALHOST) -> tuple[subprocess.Popen, str, str]:
     """Start a server for this process; returns (process, zmq_url, web_url).
 
@@ -81,8 +103,10 @@ def start(host: str = LOCALHOST) -> tuple[subprocess.Popen, str, str]:
     this process ends. The caller owns the process: terminate it to stop the server.
 
     Raises:
+        h4pin.ParameterError: ``host`` is not an interface of this machine (:func:`check_host`).
         RuntimeError: the server exited before printing its addresses (its stderr is quoted).
     """
+    check_host(host)
     err = tempfile.TemporaryFile()
     proc = subprocess.Popen([sys.executable, "-u", "-m", "h4pin.io.meshcat_server", "--host", host,
                              "--parent", str(os.getpid())],

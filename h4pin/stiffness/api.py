@@ -147,9 +147,16 @@ class Compliance:
         rot = cf.rot_z(theta)
 
         def transform(o: np.ndarray) -> np.ndarray:
-            o = np.asarray(o, dtype=float)
-            if o.shape[-1:] != (3,):
+            if np.iscomplexobj(o):
+                raise ParameterError(f"a point offset must be real numbers (m), got {o!r}")
+            try:
+                o = np.asarray(o, dtype=float)
+            except (TypeError, ValueError):
+                raise ParameterError(f"a point offset must be numbers (m), got {o!r}") from None
+            if o.shape[-1:] != (3,) or o.ndim > 2:
                 raise ParameterError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
+            if not np.all(np.isfinite(o)):
+                raise ParameterError(f"a point offset must be finite (m), got {o.tolist()}")
             r = np.einsum("...ab,...b->...a", rot, o)
             t = np.zeros((*r.shape[:-1], 3, 6))
             t[..., :, :3] = np.eye(3)

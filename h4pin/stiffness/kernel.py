@@ -429,6 +429,17 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
         start += n
 
 
+def cached() -> bool:
+    """Whether numba's on-disk cache holds the compiled kernel (else the first call compiles it,
+    10 to 30 s once)."""
+    import os
+
+    try:
+        return all(os.path.exists(f._cache._cache_file._index_path) for f in (_one, _batch))
+    except AttributeError:  # another numba's cache layout: do not guess
+        return True
+
+
 def threads() -> int:
     """numba's current number of threads for the batch kernel."""
     return numba.get_num_threads()

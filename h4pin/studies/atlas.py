@@ -35,7 +35,7 @@ from h4pin import verdicts
 from h4pin.description.geometry import geometry_from_params
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
-from h4pin.files import make_readable, save_figure
+from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
 from h4pin.stiffness import kernel
 
 #: The quantities of an atlas, with their units and a description.
@@ -115,6 +115,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
     axes = {"theta": _axis("theta", theta), "z": _axis("z", z), "y": _axis("y", y), "x": _axis("x", x)}
     shape = tuple(len(v) for v in axes.values())
     n = int(np.prod(shape))
+    check_memory(n)
     out = {q: np.full(n, np.nan) for q in QUANTITIES}
     status = np.empty(n, dtype=np.int8)
 
@@ -145,25 +146,65 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
     data = {q: (dims, v.reshape(shape), {"units": QUANTITIES[q][0], "long_name": QUANTITIES[q][1]})
             for q, v in out.items()}
     data["status"] = (dims, status.reshape(shape), {
-        "units": "1", "long_name": "kernel verdict", "flag_values": np.arange(5, dtype=np.int8),
+        "units": "1", "long_name": "verdict (h4pin.verdicts)",
+        "flag_values": np.arange(len(verdicts.STATUS_NAMES), dtype=np.int8),
         "flag_meanings": " ".join(s.replace(" ", "_") for s in verdicts.STATUS_NAMES)})
     coords = {k: (k, v, {"units": "rad" if k == "theta" else "m"}) for k, v in axes.items()}
     return xr.Dataset(data, coords=coords, attrs={
-        "title": "H4 workspace atlas", "model": model, "source": name,
+        "title": "H4 workspace atlas", "h4pin": "atlas", "model": model, "source": name,
         "reference": "Company, Pierrot, Fauroux, ICRA 2005, eq. 30 (compliance), eq. 8 (J), eq. 6 (M1)",
         "pose": "D = (x, y, z), central bar rotated by theta about z",
     })
 
 
+#: Bytes an atlas holds per pose: five float64 quantities and the int8 verdict, twice (the arrays
+#: and the copy a file engine may make while writing).
+BYTES_PER_POSE = 2 * (5 * 8 + 1)
+
+
+def check_memory(n: int) -> None:
+    """Refuse, before any work, a grid whose results do not fit in the memory this machine has
+    available (:data:`BYTES_PER_POSE`)."""
+    need = n * BYTES_PER_POSE
+    try:
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # not Linux: no check
+        return
+    if need > avail:
+        raise ParameterError(f"a grid of {n:,} poses needs about {need / 2**30:.1f} GiB, this machine has "
+                             f"{avail / 2**30:.1f} GiB available: use fewer points or several slices")
+
+
+def check_out(path: str | Path, what: str = "path") -> Path:
+    """Refuse, before any work, an atlas output that :func:`save` could not write: not ``.nc`` or
+    ``.zarr``, an unwritable folder, a folder where the ``.nc`` file should go, or an existing
+    ``.zarr`` folder that is not an atlas (it would be replaced)."""
+    path = check_output(path, what, folder=Path(path).suffix == ".zarr", suffixes=(".nc", ".zarr"))
+    if path.suffix == ".zarr" and path.exists() and not _is_atlas_store(path):
+        raise ParameterError(f"{what} {path} exists and is not an h4pin atlas: give a new path (an existing atlas "
+                             "is replaced)")
+    return path
+
+
+def _is_atlas_store(path: Path) -> bool:
+    for meta in ("zarr.json", ".zattrs"):
+        f = path / meta
+        if f.is_file() and '"atlas"' in f.read_text(encoding="utf-8", errors="replace"):
+            return True
+    return False
+
+
 def save(ds: xr.Dataset, path: str | Path) -> Path:
     """Write an atlas atomically: ``.nc`` (NetCDF4 through h5netcdf) or ``.zarr`` (a folder).
-    Files are mode 0644; nothing is left half-written if the write fails."""
-    path = Path(path)
-    if path.suffix not in (".nc", ".zarr"):
-        raise ParameterError(f"path must end in .nc or .zarr, got {str(path)!r}")
-    if not path.parent.is_dir():
-        raise ParameterError(f"path: folder {str(path.parent)!r} does not exist")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    Files are mode 0644; nothing is left half-written if the write fails, and the temporary
+    folder a killed save left is removed the next time (:func:`h4pin.files.clean_stale`).
+
+    Raises:
+        ParameterError: as :func:`check_out`.
+    """
+    path = check_out(path)
+    clean_stale(path)
+    tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
     try:
         if path.suffix == ".nc":
             target = tmp / path.name

@@ -23,6 +23,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -34,7 +37,7 @@ from h4pin import verdicts
 from h4pin.description.geometry import geometry_from_params
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
-from h4pin.files import make_readable, save_figure
+from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
 from h4pin.stiffness import kernel
 
 #: The design variables, in order: name -> (unit, meaning).
@@ -188,26 +191,67 @@ _RESULTS = {"valid": ("bool", False), "reach_all": ("bool", False), "worst": ("f
 
 
 def _open_store(path: Path, spec: Spec):
+    """The store of ``spec`` at ``path``: resumed if it holds this sweep; else created in a
+    temporary folder beside it and moved into place in one rename, so that a kill at any moment
+    leaves either no store or a whole one (and a stale temporary folder, removed next time)."""
     import zarr
 
-    if path.exists():
+    clean_stale(path)
+    if path.exists() and not (path.is_dir() and not any(path.iterdir())):
+        check_store(path)
         group = zarr.open_group(str(path), mode="a")
         stored = group.attrs.get("spec")
-        if stored is None or Spec.from_json(stored) != spec:
+        if stored is None:
+            raise ParameterError(f"path: {path} is an unfinished sweep store (no spec): remove it (rm -r {path}) and "
+                                 "run again")
+        if Spec.from_json(stored) != spec:
             raise ParameterError(f"path: {path} holds a different sweep (spec {stored}); use another path")
         return group
-    group = zarr.open_group(str(path), mode="w")
-    create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
-    table = designs(spec)
-    arr = create("designs", shape=table.shape, chunks=(spec.chunk, table.shape[1]), dtype="float64")
-    arr[:] = table
-    for name, (dtype, fill) in _RESULTS.items():
-        create(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
-    create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
-    group.attrs["variables"] = list(VARIABLES)
-    group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3"}
-    group.attrs["spec"] = spec.to_json()  # written last: a store without it is not a sweep yet
-    return group
+    tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
+    try:
+        group = zarr.open_group(str(tmp / "store"), mode="w")
+        create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
+        table = designs(spec)
+        arr = create("designs", shape=table.shape, chunks=(spec.chunk, table.shape[1]), dtype="float64")
+        arr[:] = table
+        for name, (dtype, fill) in _RESULTS.items():
+            create(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
+        create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
+        group.attrs["h4pin"] = "sweep"
+        group.attrs["variables"] = list(VARIABLES)
+        group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3"}
+        group.attrs["spec"] = spec.to_json()
+        make_readable(tmp / "store")
+        os.replace(tmp / "store", path)  # atomic: the store appears whole, spec included
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return zarr.open_group(str(path), mode="a")
+
+
+def check_store(path: str | Path, what: str = "path") -> Path:
+    """Refuse, before any work, a sweep output that is not writable or is an existing folder that
+    is not a sweep store (an empty folder is used; a sweep store of the same spec is resumed)."""
+    path = check_output(path, what, folder=True)
+    if path.is_dir() and any(path.iterdir()):
+        meta = [path / "zarr.json", path / ".zattrs", path / ".zgroup"]
+        if not any(m.is_file() for m in meta):
+            raise ParameterError(f"{what} {path} exists and is not a sweep store: give a new path (h4pin never writes "
+                                 "into another folder)")
+    return path
+
+
+def check_scheduler(address: str, timeout: float = 5.0) -> None:
+    """Refuse, within ``timeout`` s, a Dask scheduler address that does not answer."""
+    import socket
+    from urllib.parse import urlparse
+
+    url = urlparse(address if "://" in address else f"tcp://{address}")
+    try:
+        port = url.port or 8786
+        with socket.create_connection((url.hostname or "", port), timeout=timeout):
+            pass
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"scheduler: cannot reach a Dask scheduler at {address} ({exc})") from None
 
 
 def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: str | None = None,
@@ -225,7 +269,13 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
 
     if workers is not None and scheduler is not None:
         raise ParameterError("give workers or scheduler, not both")
-    path = Path(path)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError(f"workers must be an integer >= 1 (Dask workers), got {workers!r}")
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")
+    path = check_store(path)
+    if scheduler is not None:
+        check_scheduler(scheduler)
     group = _open_store(path, spec)
     done = group["done"][:]
     todo = [c for c in range(spec.n_chunks) if not done[c]]

@@ -43,7 +43,7 @@ import numpy as np
 
 from h4pin.description.geometry import H4Geometry, spring_compliances
 from h4pin.description.params import TOLERANCES
-from h4pin.errors import ParameterError
+from h4pin.errors import ConvergenceError, ParameterError
 from h4pin.files import save_figure
 from h4pin.kinematics import closed_form as cf
 from h4pin.stiffness import eq30
@@ -63,6 +63,9 @@ OUTPUTS = (("xx", 1e6, "um/N"), ("yy", 1e6, "um/N"), ("zz", 1e6, "um/N"), ("xz",
            ("lambda_max", 1e6, "um/N"), ("dx", 1e6, "um"), ("dy", 1e6, "um"), ("dz", 1e6, "um"),
            ("dtheta", 1e6, "urad"), ("tilt", 1e6, "urad"))
 _CHUNK = 4096  # robot x pose pairs per vectorised block
+#: Largest sigma accepted (m): a tenth of the prototype's smallest length (its 35 mm half-width is
+#: the shortest); machined tolerances are 0.05 to 0.1 mm.
+MAX_SIGMA = 3.5e-3
 
 
 def check_sigmas(sigmas: dict[str, float] | None) -> dict[str, float]:
@@ -78,6 +81,9 @@ def check_sigmas(sigmas: dict[str, float] | None) -> dict[str, float]:
             raise ParameterError(f"sigma {name!r} must be a number in m, got {value!r}") from None
         if not np.isfinite(v) or v < 0:
             raise ParameterError(f"sigma {name!r} must be finite and >= 0 (m), got {value!r}")
+        if v > MAX_SIGMA:
+            raise ParameterError(f"sigma {name!r} = {v:g} m is not a manufacturing tolerance (at most {MAX_SIGMA:g} m: "
+                                 "errors that large do not leave the robot assembled)")
         out[name] = v
     return out
 
@@ -294,6 +300,10 @@ def study(h4, poses: np.ndarray | None = None, n_robots: int = 1000, sigmas: dic
                 bar.update(done)
     if bar is not None:
         bar.close()
+    if not conv.any():
+        raise ConvergenceError(f"none of the {n_robots} robots assembles at the poses with these sigmas "
+                               f"({', '.join(f'{k} {v:g} m' for k, v in check_sigmas(sigmas).items() if v)}): "
+                               "the errors are too large for this robot")
     return ToleranceResult(x, q_nom, check_sigmas(sigmas), comp, nom.translational, err, tilt, conv)
 
 

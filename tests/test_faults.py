@@ -1,0 +1,225 @@
+# SPDX-License-Identifier: Apache-2.0
+"""No silent wrong answer, no stuck or unrecoverable job: URDF edits and CLI arguments that must
+each give their typed one-line error before any work, and sweeps and atlases killed at several
+moments (SIGKILL) that resume to the result of an uninterrupted run."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import h4pin
+from h4pin import cli
+
+ROOT = Path(__file__).resolve().parent.parent
+
+ARM = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base"/>
+  <link name="upper"><visual><geometry><mesh filename="package://nowhere/upper.stl"/></geometry></visual></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def edit(old: str, new: str, count: int = 1):
+    def apply(text: str) -> str:
+        assert old in text, old
+        return text.replace(old, new, count)
+    return apply
+
+
+#: URDF edits: (id, edit of the prototype's text, error class, words of the message).
+URDF_CASES = [
+    ("zero actuator axis", edit('<axis xyz="0 -1.0 0"/>', '<axis xyz="0 0 0"/>'), h4pin.MalformedURDFError,
+     "zero <axis"),
+    ("axis not numbers", edit('<axis xyz="0 -1.0 0"/>', '<axis xyz="0 one 0"/>'), h4pin.MalformedURDFError,
+     "not a list of numbers"),
+    ("negative mass", edit('<mass value="6.7858401317539565"/>', '<mass value="-6.8"/>'), h4pin.MalformedURDFError,
+     "negative <mass"),
+    ("inertia not PSD", edit('ixx="0.1561025973642233"', 'ixx="-0.2"'), h4pin.MalformedURDFError,
+     "not positive semi-definite"),
+    ("swapped limits", edit('<limit lower="-1.0" upper="2.0"', '<limit lower="2.5" upper="2.0"'),
+     h4pin.MalformedURDFError, "above upper"),
+    ("NaN origin", edit('<origin xyz="-0.2 -0.06 0" rpy="0 0 0"/>', '<origin xyz="nan -0.06 0" rpy="0 0 0"/>'),
+     h4pin.MalformedURDFError, "finite numbers"),
+    ("infinite rpy", edit('<origin xyz="-0.2 -0.06 0" rpy="0 0 0"/>', '<origin xyz="-0.2 -0.06 0" rpy="0 inf 0"/>'),
+     h4pin.MalformedURDFError, "finite numbers"),
+    ("duplicate joint", edit('<joint name="A_1_frame"', '<joint name="actuator_1"'), h4pin.MalformedURDFError,
+     "two <joint> elements are named 'actuator_1'"),
+    ("duplicate link", edit('<link name="A_1"/>', '<link name="forearm_1"/>'), h4pin.MalformedURDFError,
+     "two <link> elements are named 'forearm_1'"),
+    ("foreign robot with a missing mesh", lambda _: ARM, h4pin.MalformedURDFError, "not an H4"),
+    ("not XML", lambda t: t[: len(t) // 2], h4pin.MalformedURDFError, ""),
+    ("missing frame", edit('<link name="A_1"/>', '<link name="A_one"/>'), h4pin.MalformedURDFError, ""),
+]
+
+
+@pytest.mark.parametrize(("edit_text", "error", "words"), [c[1:] for c in URDF_CASES], ids=[c[0] for c in URDF_CASES])
+def test_urdf_edits_give_their_typed_error(tmp_path, proto, edit_text, error, words, capfd):
+    path = tmp_path / "edited.urdf"
+    path.write_text(edit_text(proto.urdf))
+    with pytest.raises(error, match=None) as info:
+        h4pin.load(path)
+    message = str(info.value)
+    assert words in message and str(path) in message and "\n" not in message
+    assert "Error:" not in capfd.readouterr().err  # refused before Pinocchio's C++ parser complains
+
+
+def test_ur5_is_refused_for_not_being_an_h4():
+    erd = pytest.importorskip("example_robot_data")
+    try:
+        path = erd.getModelPath("/ur_description/urdf/ur5_robot.urdf") + "/ur_description/urdf/ur5_robot.urdf"
+    except Exception:  # noqa: BLE001 - the data package is optional
+        pytest.skip("example-robot-data's UR5 files are not installed")
+    with pytest.raises(h4pin.MalformedURDFError, match="not an H4"):
+        h4pin.load(path)
+
+
+@pytest.mark.parametrize(("springs", "words"), [({"kc": -1}, "springs['kc']"), ({"E": [1, 2]}, "springs['E']"),
+                                                ({"forearm_stressed_fraction": 1.5}, "at most 1"),
+                                                ({"Sb": np.nan}, "springs['Sb']")])
+def test_bad_spring_overrides_blame_the_argument(springs, words):
+    with pytest.raises(h4pin.ParameterError) as info:
+        h4pin.load("prototype", springs=springs)
+    assert words in str(info.value) and ".urdf" not in str(info.value)
+
+
+#: CLI arguments: (argv, words of the one-line error). Each exits 2 before any work, writes nothing.
+def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
+    folder = tmp / "folder"
+    folder.mkdir()
+    (folder / "mine.txt").write_text("a user's file")
+    a_file = tmp / "file.txt"
+    a_file.write_text("x")
+    (tmp / "folder.zarr").mkdir()
+    (tmp / "folder.zarr" / "data.bin").write_bytes(b"not an atlas")
+    return [
+        (["sweep", "--workers", "0", "--out", str(tmp / "s.zarr")], "--workers must be >= 1"),
+        (["sweep", "--out", str(folder)], "is not a sweep store"),
+        (["sweep", "--out", str(a_file)], "is a file"),
+        (["sweep", "--out", str(tmp / "no" / "s.zarr")], "does not exist"),
+        (["sweep", "--out", str(tmp / "s.zarr"), "--pareto", str(tmp / "p.txt")], "must end in .png"),
+        (["sweep", "--out", str(tmp / "s.zarr"), "--urdf-dir", str(tmp / "nowhere")], "does not exist"),
+        (["sweep", "--out", str(tmp / "s.zarr"), "--scheduler", "tcp://127.0.0.1:9"], "cannot reach a Dask"),
+        (["atlas", "--out", str(tmp / "a.txt")], "must end in .nc or .zarr"),
+        (["atlas", "--out", str(a_file.parent / "x" / "a.nc")], "does not exist"),
+        (["atlas", "--out", str(folder)], "must end in .nc or .zarr"),
+        (["atlas", "--out", str(tmp / "folder.zarr")], "is not an h4pin atlas"),
+        (["atlas", "--out", str(tmp / "a.nc"), "--figures", str(tmp / "nowhere")], "does not exist"),
+        (["atlas", "--out", str(tmp / "a.nc"), "--x", "-1", "1", "100000", "--y", "-1", "1", "100000",
+          "--z-range", "-1", "0", "1000"], "GiB"),
+        (["atlas", "--out", str(tmp / "a.nc"), "--x", "-1", "1", "0"], "N >= 1"),
+        (["view", "--host", "999.1.1.1"], "cannot listen there"),
+        (["view", "--host", "8.8.8.8"], "cannot listen there"),
+        (["view", "--html", str(tmp / "no" / "v.html")], "does not exist"),
+        (["view", "--html", str(folder)], "is a folder"),
+        (["tolerance", "--sigma", "forearm=1e9"], "not a manufacturing tolerance"),
+        (["tolerance", "--sigma", "forearm=-1"], "must be finite and >= 0"),
+        (["tolerance", "--sigma", "bogus=1e-4"], "unknown tolerance"),
+        (["tolerance", "--robots", "0"], "--robots must be >= 1"),
+        (["tolerance", "--figure", str(tmp / "t.txt")], "must end in .png"),
+        (["export", "--mjcf", str(folder)], "is a folder"),
+        (["table2", "--variant", "nope"], "unknown H4 variant"),
+        (["table2", "--model", "exact"], "model must be one of"),
+    ]
+
+
+def run_cli(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
+    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err
+
+
+def test_cli_errors_before_any_work(tmp_path, monkeypatch, capsys):
+    cases = cli_cases(tmp_path)
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    for argv, words in cases:
+        started = time.monotonic()
+        code, _, err = run_cli(argv, monkeypatch, capsys)
+        lines = [line for line in err.splitlines() if not line.startswith("h4pin: first run")]
+        assert code == 2, (argv, err)
+        assert len(lines) == 1 and lines[0].startswith("error: ") and words in lines[0], (argv, err)
+        assert time.monotonic() - started < 8.0, argv  # refused up front: no computation, no 30 s timeout
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing written
+    assert len(cases) >= 25
+
+
+def test_help_shows_flags_without_a_value(monkeypatch, capsys):
+    for command in ("table2", "atlas", "sweep"):
+        code, out, _ = run_cli([command, "--help"], monkeypatch, capsys)
+        assert code == 0 and "<bool>" not in out and "BOOLEAN" not in out
+    code, out, _ = run_cli(["table2", "--help"], monkeypatch, capsys)
+    assert "--fitted " in out
+
+
+# ---------------------------------------------------------------------------------------------
+# Real kills: a sweep and an atlas as subprocesses, SIGKILL at several moments, then resumed.
+
+
+def h4pin_cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "h4pin.cli", *args]
+
+
+def run_to_end(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+
+
+def kill_after(args: list[str], cwd: Path, seconds: float) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen(args, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    time.sleep(seconds)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
+@pytest.mark.slow
+def test_sweep_killed_at_any_moment_resumes_to_the_same_result(tmp_path):
+    zarr = pytest.importorskip("zarr")
+    args = ["sweep", "--designs", "512", "--chunk", "32", "--quiet"]
+    whole = run_to_end(h4pin_cmd(*args, "--out", "whole.zarr"), tmp_path)
+    assert whole.returncode == 0, whole.stderr
+    ref = zarr.open_group(str(tmp_path / "whole.zarr"), mode="r")
+    for k, delay in enumerate((0.3, 1.2, 2.5, 4.0)):
+        out = f"killed{k}.zarr"
+        kill_after(h4pin_cmd(*args, "--out", out), tmp_path, delay)
+        # whatever the kill left resumes (or starts anew): never "a different sweep"
+        again = run_to_end(h4pin_cmd(*args, "--out", out), tmp_path)
+        assert again.returncode == 0, (delay, again.stderr)
+        got = zarr.open_group(str(tmp_path / out), mode="r")
+        for name in ("designs", "valid", "reach_all", "worst", "volume", "task_ok", "done"):
+            np.testing.assert_array_equal(got[name][:], ref[name][:], err_msg=f"{name} after a kill at {delay} s")
+    assert not [p for p in tmp_path.iterdir() if "h4pin-tmp" in p.name]  # no stale temporary folder left
+
+
+@pytest.mark.slow
+def test_atlas_killed_while_saving_leaves_nothing_behind(tmp_path):
+    args = ["atlas", "--x", "-0.2", "0.2", "301", "--y", "-0.2", "0.2", "301", "--quiet"]
+    whole = run_to_end(h4pin_cmd(*args, "--out", "whole.zarr"), tmp_path)
+    assert whole.returncode == 0, whole.stderr
+    from h4pin.studies.atlas import open_atlas
+
+    ref = open_atlas(tmp_path / "whole.zarr")
+    for k, delay in enumerate((0.5, 2.0, 3.0)):
+        out = f"killed{k}.zarr"
+        kill_after(h4pin_cmd(*args, "--out", out), tmp_path, delay)
+        assert not (tmp_path / out).exists() or (tmp_path / out / "zarr.json").exists()  # all or nothing
+        again = run_to_end(h4pin_cmd(*args, "--out", out), tmp_path)
+        assert again.returncode == 0, again.stderr
+        got = open_atlas(tmp_path / out)
+        for name in ref.data_vars:
+            np.testing.assert_array_equal(got[name].values, ref[name].values)
+    assert not [p for p in tmp_path.iterdir() if "h4pin-tmp" in p.name]
