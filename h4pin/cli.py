@@ -99,13 +99,13 @@ def table2(
     variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
     urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
     model: str = typer.Option("paper", help="'paper' (eq. 30 as printed) or 'consistent' (erratum 4 fixed)"),
-    fitted: bool = typer.Option(False, "--fitted", help="side by side: this robot, the 'fitted' variant at its "
-                                "identified point, the paper's computed and measured tables"),
+    match: bool = typer.Option(False, "--measured-match", help="side by side: this robot, the 'measured_match' "
+                               "variant (a saturated fit of the measured table) at its point, the paper's tables"),
 ) -> None:
     """Table II of the paper: compliance at q_i = 45 deg beside the paper's computed and measured tables."""
-    from h4pin.studies.table2 import report, report_fitted
+    from h4pin.studies.table2 import report, report_match
 
-    typer.echo((report_fitted if fitted else report)(load_robot(variant, urdf), model=model))
+    typer.echo((report_match if match else report)(load_robot(variant, urdf), model=model))
 
 
 @app.command()

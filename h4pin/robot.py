@@ -53,7 +53,7 @@ def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any]
     """Load an H4: a variant name, a path to a URDF file, or an :class:`H4Params`.
 
     Args:
-        source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"``, ``"fitted"`` (see
+        source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"``, ``"measured_match"`` (see
             :data:`h4pin.VARIANTS`), a path to any H4 URDF (an existing file is always taken as
             a path), or parameters (the URDF is then generated in memory).
         springs: Spring data given or overridden at load, by H4Params field name: ``kc``, ``E``,

@@ -6,7 +6,8 @@ Prints, at q_i = 45 deg: the four terms and their shapes; that control and bendi
 shape and tension lies in the span of that shape and the tilt (SVD); the best non-negative
 combination of the terms against the paper's computed table (nnls, and the least possible
 largest misfit, linprog) against its rounding; the region of C_k offset x tilt factor where the
-table is met within rounding; and why the measured table is out of reach (zz/xx, noise).
+table is met within rounding; why the measured table is out of reach (zz/xx, noise); and how
+these conclusions move with an actuator zero offset of +-3 deg or +-5 % on an unstated length.
 
     python scripts/gap_analysis.py [--step-mm 2]
 """
@@ -126,6 +127,24 @@ def main() -> None:
           f"zz/xx at the reachable minimum would need zz = {region.zz_xx_min.min() * gap.MEASURED[0, 0] * US:.1f} "
           f"um/N against 9 measured, {(region.zz_xx_min.min() * gap.MEASURED[0, 0] - gap.MEASURED[2, 2]) / sigma:.1f} "
           "sigma")
+    print_robustness()
+
+
+def print_robustness() -> None:
+    """Sections 1-3's conclusions under an actuator zero offset of +-3 deg and +-5 % on each length
+    the paper does not state (docs/gap.md, section 8)."""
+    print("\nRobustness: every actuator at 45 +- 3 deg, or +-5 % on an unstated length (h, C_k's |y| and z)")
+    print(f"  {'change':<18}{'yy/xx reachable':>18}{'zz/xx reachable':>18}{'least miss':>12}  springs alone meet the "
+          "computed table")
+    for r in gap.robustness():
+        print(f"  {r.name:<18}{r.yy_xx[0]:>10.3f} .. {r.yy_xx[1]:.3f}{r.zz_xx[0]:>10.3f} .. {r.zz_xx[1]:.3f}"
+              f"{r.least_miss * US:>9.2f} um/N  {'yes' if r.meets else 'no'}")
+    print("  smallest move of C_k (2 mm grid, every spring free) that meets the computed table within rounding:")
+    for q in (42.0, 45.0, 48.0):
+        found = gap.smallest_joint_offset(np.deg2rad(q))
+        where = "none within 60 mm" if found is None else (
+            f"({found[0] * 1e3:+.0f}, {found[1] * 1e3:+.0f}) mm, |move| {np.hypot(*found[:2]) * 1e3:.0f} mm")
+        print(f"    actuators at {q:.0f} deg: {where}")
 
 
 if __name__ == "__main__":

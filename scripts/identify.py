@@ -6,7 +6,7 @@ Bounded least squares (scipy.optimize.least_squares) of the tool/load points, th
 the revolute joints C_k, the half-width, the tilt (torsion) and axial (kc, E) compliance scales:
 
 * measured table, force and dial indicators at two different points (11 parameters);
-* measured table, one point (p' = p, 8 parameters): the ``fitted`` variant;
+* measured table, one point (p' = p, 8 parameters): the ``measured_match`` variant;
 * measured table, at D (5 robot parameters only);
 * computed table, at D (5 robot parameters).
 
@@ -21,8 +21,6 @@ measured) and the 2-D sections of their compliance ellipsoids.
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -32,6 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import h4pin  # noqa: E402
+from h4pin.files import save_figure  # noqa: E402
 from h4pin.kinematics.closed_form import CENTRE_Q  # noqa: E402
 from h4pin.stiffness.api import compliance  # noqa: E402
 from h4pin.studies import (
@@ -105,16 +104,19 @@ def plot(tables: dict[str, np.ndarray], path: Path) -> None:
         ax.set_ylabel(f"d{'xyz'[j]} [um/N]")
         ax.set_title(f"{'xyz'[i]}{'xyz'[j]} section: displacement under a unit force turning in the plane", fontsize=9)
     fig.axes[-1].legend(fontsize=8)
-    fig.suptitle("H4 Table II at q_i = 45 deg: h4pin default, fitted variant, paper computed and measured")
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=80)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    fig.suptitle("H4 Table II at q_i = 45 deg: h4pin default, measured_match variant, paper computed and measured")
+    save_figure(fig, path, dpi=80)
+
+
+def print_selection(rows: list) -> None:
+    """The candidate parameter sets on the six symmetric numbers, best AIC first."""
+    sigma, dof = identify.noise_from_antisymmetry()
+    print(f"\nModel selection on the measured table's symmetric part (6 numbers), noise from its antisymmetric "
+          f"part alone: sigma = {sigma * US:.2f} um/N ({dof} dof); leave-one-out z of xx, yy, zz, xy, xz, yz:")
+    print(f"  {'set':<22}{'k':>3}{'dof':>5}{'chi2':>8}{'AIC':>8}   leave-one-out z                    on a bound")
+    for s in rows:
+        loo = " ".join(f"{z:+5.1f}" for z in s.loo)
+        print(f"  {s.name:<22}{s.k:>3}{s.dof:>5}{s.chi2:>8.2f}{s.aic:>8.2f}   {loo}   {', '.join(s.at_bound) or '-'}")
 
 
 def main() -> None:
@@ -136,7 +138,8 @@ def main() -> None:
     two = identify.fit(gap.MEASURED, identify.MEASURED_FIT, starts=args.starts)
     print_fit("measured table, force at p', dial indicators at p (11 parameters)", two)
     one = identify.fit_measured_one_point(starts=args.starts)
-    print_fit("measured table, force and dial indicators at one point p (8 parameters): the 'fitted' variant", one)
+    print_fit("measured table, force and dial indicators at one point p (8 parameters, saturated): the "
+              "'measured_match' variant", one)
     # FITTED is current when it costs no more than this fit and agrees with it in the parameters the
     # data fixes (identifiable, or on a bound); along the null directions (half-width with tilt,
     # exactly) any point of the valley is as good, and where the solver stops there is round-off.
@@ -158,11 +161,13 @@ def main() -> None:
     print(f"  computed table met within rounding (+-0.5 um/N): "
           f"{np.max(np.abs(comp.model - comp.target)) <= gap.ROUNDING}")
 
+    print_selection(identify.select(starts=args.starts))
+
     default = h4pin.load("prototype")
-    fitted = h4pin.load("fitted")
+    fitted = h4pin.load("measured_match")
     tables = {
         "h4pin default, at D": compliance(default, default.forward_geometry(CENTRE_Q)).translational,
-        "fitted variant, at p": compliance(fitted, fitted.forward_geometry(CENTRE_Q)).at(identify.fitted_point()),
+        "measured_match, at p": compliance(fitted, fitted.forward_geometry(CENTRE_Q)).at(identify.fitted_point()),
         "paper, computed": gap.COMPUTED,
         "paper, measured": gap.MEASURED,
     }

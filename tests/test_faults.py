@@ -128,6 +128,11 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["tolerance", "--robots", "0"], "--robots must be >= 1"),
         (["tolerance", "--figure", str(tmp / "t.txt")], "must end in .png"),
         (["export", "--mjcf", str(folder)], "is a folder"),
+        (["atlas", "--out", "/proc/atlas.nc"], "cannot write in /proc"),
+        (["sweep", "--out", "/proc/s.zarr"], "cannot write in /proc"),
+        (["view", "--html", "/proc/v.html"], "cannot write in /proc"),
+        (["tolerance", "--figure", "/proc/t.png"], "cannot write in /proc"),
+        (["export", "--mjcf", "/proc/h4.xml"], "cannot write in /proc"),
         (["table2", "--variant", "nope"], "unknown H4 variant"),
         (["table2", "--model", "exact"], "model must be one of"),
     ]
@@ -155,12 +160,47 @@ def test_cli_errors_before_any_work(tmp_path, monkeypatch, capsys):
     assert len(cases) >= 25
 
 
+def test_first_run_says_it_compiles(monkeypatch, capsys, tmp_path):
+    """With an empty numba cache the kernel is not cached, and a computing command says so on
+    stderr before it starts (one line); --help and cached runs say nothing."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
+    code = "from h4pin.stiffness import kernel; print(kernel.cached())"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+    from h4pin.stiffness import kernel
+
+    monkeypatch.setattr(kernel, "cached", lambda: False)
+    cli.note_first_compile(["table2"])
+    assert "first run: compiling" in capsys.readouterr().err
+    cli.note_first_compile(["table2", "--help"])
+    monkeypatch.setattr(kernel, "cached", lambda: True)
+    cli.note_first_compile(["atlas"])
+    assert capsys.readouterr().err == ""
+
+
+def test_bad_values_in_results_and_poses(proto, centre):
+    """A NaN offset, a complex pose and a NaN pose with on_error='nan' each get their typed answer."""
+    res = h4pin.compliance(proto, centre)
+    with pytest.raises(h4pin.ParameterError, match="finite"):
+        res.at([0.0, 0.0, np.nan])
+    with pytest.raises(h4pin.ParameterError, match="real numbers"):
+        res.at([0.0, 1j, 0.0])
+    with pytest.raises(h4pin.PoseError, match="real numbers"):
+        h4pin.compliance(proto, centre + 1e-3j)
+    with pytest.raises(h4pin.PoseError, match="real numbers"):
+        proto.inverse_geometry([0.0, 0.0, -0.6, 1j])
+    one = h4pin.compliance(proto, [np.nan, 0.0, -0.6, 0.0], on_error="nan")
+    assert one.status == 5 and not one.valid and np.all(np.isnan(one.matrix))
+    with pytest.raises(h4pin.PoseError, match="non-finite"):
+        h4pin.compliance(proto, [np.nan, 0.0, -0.6, 0.0])
+
+
 def test_help_shows_flags_without_a_value(monkeypatch, capsys):
     for command in ("table2", "atlas", "sweep"):
         code, out, _ = run_cli([command, "--help"], monkeypatch, capsys)
         assert code == 0 and "<bool>" not in out and "BOOLEAN" not in out
     code, out, _ = run_cli(["table2", "--help"], monkeypatch, capsys)
-    assert "--fitted " in out
+    assert "--measured-match " in out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -122,3 +122,23 @@ def test_half_width_acts_only_through_tension(centre):
               "torsion": a["torsion"][:3, :3]}
     assert np.abs(change["tension"]).max() > 0.3 * np.abs(a["tension"][:3, :3]).max()
     assert gap.in_span(change)[1] < 1e-10
+
+
+def test_robustness_rows_recompute_sections_1_and_2():
+    """Each row of gap.robustness equals sections 1-2 recomputed on a robot built by hand with the
+    change (actuators at 42 deg through forward geometry; C_k's |y| scaled in H4Params)."""
+    from h4pin import H4Params, compliance, load
+
+    rows = {r.name: r for r in gap.robustness(("nominal", "q -3 deg", "C_k |y| +5 %"))}
+    h4 = load()
+    res = compliance(h4, h4.forward_geometry(np.full(4, np.deg2rad(42.0))), elements=False)
+    blocks = {t: res.terms[t][:3, :3] for t in ("control", "bending", "torsion", "tension")}
+    assert rows["q -3 deg"].yy_xx == pytest.approx(gap.ratio_range(blocks, "yy", "xx"), rel=1e-12)
+    assert rows["q -3 deg"].least_miss == pytest.approx(gap.minimax_combination(blocks).max_abs, rel=1e-9)
+    dc = H4Params().DC.copy()
+    dc[1] *= 1.05
+    moved = gap.term_blocks(H4Params(DC=dc))
+    assert rows["C_k |y| +5 %"].zz_xx == pytest.approx(gap.ratio_range(moved), rel=1e-12)
+    # the robust conclusion: yy/xx never reaches the computed 21/40, springs alone never meet it
+    for r in rows.values():
+        assert r.yy_xx[1] < 21 / 40 and not r.meets and r.least_miss > gap.ROUNDING

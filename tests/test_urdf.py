@@ -121,7 +121,7 @@ def test_existing_file_is_a_path_and_names_are_variants(tmp_path, monkeypatch):
     assert h4pin.load("prototype").params.half_width[0] == pytest.approx(0.02)
     with pytest.raises(h4pin.URDFNotFoundError):
         h4pin.load("missing.urdf")
-    with pytest.raises(h4pin.ParameterError, match="fitted, prototype, symmetric, toleranced"):
+    with pytest.raises(h4pin.ParameterError, match="measured_match, prototype, symmetric, toleranced"):
         h4pin.load("protoype")
 
 

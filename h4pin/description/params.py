@@ -317,4 +317,4 @@ def toleranced_params(base: H4Params | None = None, seed: int = 2005, scale: flo
 
 #: Names of the variants shipped as URDF files in ``urdf/h4_<name>.urdf`` (how each is made:
 #: :data:`h4pin.studies.variants.GENERATORS`).
-VARIANTS = ("prototype", "symmetric", "toleranced", "fitted")
+VARIANTS = ("prototype", "symmetric", "toleranced", "measured_match")

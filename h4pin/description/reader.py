@@ -98,7 +98,113 @@ def read(urdf_text: str, source: str, springs: dict[str, Any] | None = None,
     return _Reader(urdf_text, source).read(springs or {}, float(bar_clearance))
 
 
-class _Reader:
+class _DataReader:
+    """The spring and element data of a URDF, per element of the tree (a base of :class:`_Reader`,
+    which provides ``model``, ``source`` and ``_err``)."""
+
+    model: pin.Model
+    source: str
+
+    def _err(self, message: str) -> MalformedURDFError:
+        return MalformedURDFError(f"{self.source}: {message}")
+
+    def _springs(self, extras: URDFExtras, override: dict[str, Any], act: list[int],
+                 bar_links: list[str]) -> dict[str, np.ndarray]:
+        unknown = set(override) - set(SPRINGS)
+        if unknown:
+            raise ParameterError(f"springs: unknown field(s) {', '.join(sorted(unknown))}; known: {', '.join(SPRINGS)}")
+        joints = [self.model.names[j] for j in act]
+        forearms = [extras.joint_child.get(name, "") for name in joints]
+        owners = {}
+        for name in SPRINGS:
+            if name == "kc":
+                owners[name] = [f"the actuated joint '{j}'" for j in joints]
+            elif name in PER_LEG:
+                owners[name] = [f"the forearm link '{f or '?'}'" for f in forearms]
+            else:
+                owners[name] = [f"the bar link '{link}'" for link in bar_links]
+        out = {}
+        for name in SPRINGS:
+            elements = joints if name == "kc" else forearms if name in PER_LEG else bar_links
+            values = np.array([extras.springs.get(e, {}).get(name, np.nan) for e in elements])
+            if name in override:
+                try:
+                    values = np.broadcast_to(np.asarray(override[name], dtype=float), values.shape).copy()
+                except (TypeError, ValueError):
+                    raise ParameterError(f"springs['{name}'] must be a number or {values.size} numbers, got "
+                                         f"{override[name]!r}") from None
+                bad = ~np.isfinite(values) | (values <= 0) | ((values > 1) if name == "forearm_stressed_fraction"
+                                                              else False)
+                if np.any(bad):
+                    k = int(np.argmax(bad))
+                    limit = ", at most 1" if name == "forearm_stressed_fraction" else ""
+                    raise ParameterError(f"springs['{name}'] = {override[name]!r}: the value for {owners[name][k]} "
+                                         f"({float(values[k])!r}) is not physical (must be finite and > 0{limit})")
+            missing = np.flatnonzero(np.isnan(values))
+            if missing.size:
+                tag = {"kc": "h4_actuator"}.get(name, "h4_forearm" if name in PER_LEG else "h4_bar")
+                attr = "stressed_fraction" if name == "forearm_stressed_fraction" else name
+                raise self._err(f"spring datum '{attr}' of {owners[name][missing[0]]} is missing "
+                                f"(<{tag} {attr}=\"...\"/> inside it, or load(..., springs={{'{name}': ...}}))")
+            out[name] = values
+        return check_springs(out, self.source, owners)
+
+    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str], act: list[int],
+                  central: int, leg_lat: np.ndarray) -> Elements:
+        """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
+        links, <h4_plate_bar> in the plate links, shaft_tilt of <h4_actuator> and <h4_base> in the
+        actuated joints); a missing element or attribute is off."""
+        joints = [self.model.names[j] for j in lateral]
+        actuated = [self.model.names[j] for j in act]
+        central_link = extras.joint_child.get(self.model.names[central], "")
+        lateral_links = [extras.joint_child.get(name, "") for name in joints]
+        # <h4_plate_bar> EI_n/GJ_n: n is C_n on the central bar, leg n (B_n) on a lateral bar.
+        allowed = {central_link: {1, 2}} | {link: {int(i) + 1 for i in np.flatnonzero(leg_lat == k)}
+                                            for k, link in enumerate(lateral_links)}
+        for owner, data in extras.springs.items():
+            for field in data:
+                if field.startswith("plate_"):
+                    n = int(field[-1])
+                    if n not in allowed.get(owner, set()):
+                        what = {central_link: "central bar"}.get(owner, "lateral bar" if owner in allowed else "link")
+                        raise self._err(f"{what} link '{owner}': <h4_plate_bar {field[6:]}> names no beam of it "
+                                        f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
+        # the other elements only where they belong
+        places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
+                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint")}
+        source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
+        for owner, data in extras.springs.items():
+            for field in data:
+                if field in ELEMENTS and field not in RIGIDITIES and owner not in places[field.split("_")[0]][0]:
+                    tag, attr = source[field]
+                    raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
+                                    f"{places[field.split('_')[0]][1]} (the element it describes)")
+        owners, values = {}, {}
+        for name in ELEMENTS:
+            rigid = np.inf if name in RIGIDITIES else 0.0
+            if name.startswith("revolute"):
+                attr = name.split("_")[1]
+                keys = [(j, name) for j in joints]
+                owners[name] = [f"lateral joint '{j}' (<h4_revolute {attr}>)" for j in joints]
+            elif name == "ball_radial":
+                keys = [(b, name) for b in bar_links]
+                owners[name] = [f"bar link '{b}' (<h4_ball radial>)" for b in bar_links]
+            elif name in RIGIDITIES:
+                q = name.split("_")[1]
+                if name.startswith("central"):
+                    keys = [(central_link, f"plate_{q}_{k + 1}") for k in range(2)]
+                else:
+                    keys = [(lateral_links[leg_lat[i]], f"plate_{q}_{i + 1}") for i in range(4)]
+                owners[name] = [f"{name.split('_')[0]} bar link '{link}' (<h4_plate_bar {f[6:]}>)" for link, f in keys]
+            else:
+                tag, attr = ("h4_actuator", "shaft_tilt") if name == "shaft_tilt" else ("h4_base", name.split("_")[1])
+                keys = [(j, name) for j in actuated]
+                owners[name] = [f"actuated joint '{j}' (<{tag} {attr}>)" for j in actuated]
+            values[name] = [extras.springs.get(key, {}).get(field, rigid) for key, field in keys]
+        return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
+
+
+class _Reader(_DataReader):
     """One reading of a URDF: the model at its neutral configuration and the checks' helpers."""
 
     def __init__(self, urdf_text: str, source: str):
@@ -130,9 +236,6 @@ class _Reader:
             raise MalformedURDFError(f"{self.source}: frame {name} is missing (the H4's named frames: "
                                      "A_ij, B_ij, C_k, D; see the README)")
         return self.frames[name]
-
-    def _err(self, message: str) -> MalformedURDFError:
-        return MalformedURDFError(f"{self.source}: {message}")
 
     def parent(self, name: str) -> int:
         return self.model.frames[self._frame(name)].parentJoint
@@ -310,101 +413,6 @@ class _Reader:
         return Description(m, self.visual_model, self.collision_model, constraint_models, dict(self.frames), geometry,
                            element_data, tuple(m.names[j] for j in act), v_act,
                            np.setdiff1d(np.arange(m.nv), v_act), index)
-
-    def _springs(self, extras: URDFExtras, override: dict[str, Any], act: list[int],
-                 bar_links: list[str]) -> dict[str, np.ndarray]:
-        unknown = set(override) - set(SPRINGS)
-        if unknown:
-            raise ParameterError(f"springs: unknown field(s) {', '.join(sorted(unknown))}; known: {', '.join(SPRINGS)}")
-        joints = [self.model.names[j] for j in act]
-        forearms = [extras.joint_child.get(name, "") for name in joints]
-        owners = {}
-        for name in SPRINGS:
-            if name == "kc":
-                owners[name] = [f"the actuated joint '{j}'" for j in joints]
-            elif name in PER_LEG:
-                owners[name] = [f"the forearm link '{f or '?'}'" for f in forearms]
-            else:
-                owners[name] = [f"the bar link '{link}'" for link in bar_links]
-        out = {}
-        for name in SPRINGS:
-            elements = joints if name == "kc" else forearms if name in PER_LEG else bar_links
-            values = np.array([extras.springs.get(e, {}).get(name, np.nan) for e in elements])
-            if name in override:
-                try:
-                    values = np.broadcast_to(np.asarray(override[name], dtype=float), values.shape).copy()
-                except (TypeError, ValueError):
-                    raise ParameterError(f"springs['{name}'] must be a number or {values.size} numbers, got "
-                                         f"{override[name]!r}") from None
-                bad = ~np.isfinite(values) | (values <= 0) | ((values > 1) if name == "forearm_stressed_fraction"
-                                                              else False)
-                if np.any(bad):
-                    k = int(np.argmax(bad))
-                    limit = ", at most 1" if name == "forearm_stressed_fraction" else ""
-                    raise ParameterError(f"springs['{name}'] = {override[name]!r}: the value for {owners[name][k]} "
-                                         f"({float(values[k])!r}) is not physical (must be finite and > 0{limit})")
-            missing = np.flatnonzero(np.isnan(values))
-            if missing.size:
-                tag = {"kc": "h4_actuator"}.get(name, "h4_forearm" if name in PER_LEG else "h4_bar")
-                attr = "stressed_fraction" if name == "forearm_stressed_fraction" else name
-                raise self._err(f"spring datum '{attr}' of {owners[name][missing[0]]} is missing "
-                                f"(<{tag} {attr}=\"...\"/> inside it, or load(..., springs={{'{name}': ...}}))")
-            out[name] = values
-        return check_springs(out, self.source, owners)
-
-    def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str], act: list[int],
-                  central: int, leg_lat: np.ndarray) -> Elements:
-        """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
-        links, <h4_plate_bar> in the plate links, shaft_tilt of <h4_actuator> and <h4_base> in the
-        actuated joints); a missing element or attribute is off."""
-        joints = [self.model.names[j] for j in lateral]
-        actuated = [self.model.names[j] for j in act]
-        central_link = extras.joint_child.get(self.model.names[central], "")
-        lateral_links = [extras.joint_child.get(name, "") for name in joints]
-        # <h4_plate_bar> EI_n/GJ_n: n is C_n on the central bar, leg n (B_n) on a lateral bar.
-        allowed = {central_link: {1, 2}} | {link: {int(i) + 1 for i in np.flatnonzero(leg_lat == k)}
-                                            for k, link in enumerate(lateral_links)}
-        for owner, data in extras.springs.items():
-            for field in data:
-                if field.startswith("plate_"):
-                    n = int(field[-1])
-                    if n not in allowed.get(owner, set()):
-                        what = {central_link: "central bar"}.get(owner, "lateral bar" if owner in allowed else "link")
-                        raise self._err(f"{what} link '{owner}': <h4_plate_bar {field[6:]}> names no beam of it "
-                                        f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
-        # the other elements only where they belong
-        places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
-                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint")}
-        source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
-        for owner, data in extras.springs.items():
-            for field in data:
-                if field in ELEMENTS and field not in RIGIDITIES and owner not in places[field.split("_")[0]][0]:
-                    tag, attr = source[field]
-                    raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
-                                    f"{places[field.split('_')[0]][1]} (the element it describes)")
-        owners, values = {}, {}
-        for name in ELEMENTS:
-            rigid = np.inf if name in RIGIDITIES else 0.0
-            if name.startswith("revolute"):
-                attr = name.split("_")[1]
-                keys = [(j, name) for j in joints]
-                owners[name] = [f"lateral joint '{j}' (<h4_revolute {attr}>)" for j in joints]
-            elif name == "ball_radial":
-                keys = [(b, name) for b in bar_links]
-                owners[name] = [f"bar link '{b}' (<h4_ball radial>)" for b in bar_links]
-            elif name in RIGIDITIES:
-                q = name.split("_")[1]
-                if name.startswith("central"):
-                    keys = [(central_link, f"plate_{q}_{k + 1}") for k in range(2)]
-                else:
-                    keys = [(lateral_links[leg_lat[i]], f"plate_{q}_{i + 1}") for i in range(4)]
-                owners[name] = [f"{name.split('_')[0]} bar link '{link}' (<h4_plate_bar {f[6:]}>)" for link, f in keys]
-            else:
-                tag, attr = ("h4_actuator", "shaft_tilt") if name == "shaft_tilt" else ("h4_base", name.split("_")[1])
-                keys = [(j, name) for j in actuated]
-                owners[name] = [f"actuated joint '{j}' (<{tag} {attr}>)" for j in actuated]
-            values[name] = [extras.springs.get(key, {}).get(field, rigid) for key, field in keys]
-        return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
 
 
 def params_from_urdf(text: str, where: str = "URDF") -> H4Params:

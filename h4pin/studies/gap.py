@@ -27,7 +27,7 @@ from scipy.optimize import linprog, nnls
 from tqdm import tqdm
 
 from h4pin.description.params import H4Params
-from h4pin.errors import ConvergenceError
+from h4pin.errors import ConvergenceError, H4Error
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.robot import H4, load
 from h4pin.stiffness.api import TERMS, compliance
@@ -48,15 +48,62 @@ def entries(block: np.ndarray) -> np.ndarray:
     return np.stack([block[..., a, b] for a, b in ENTRIES.values()], axis=-1)
 
 
-def term_blocks(robot: H4 | H4Params | None = None) -> dict[str, np.ndarray]:
-    """The translational block (3, 3) of each term at q_i = 45 deg, m/N.
+def term_blocks(robot: H4 | H4Params | None = None, q: float = np.pi / 4) -> dict[str, np.ndarray]:
+    """The translational block (3, 3) of each term of eq. 30 with every actuator at ``q`` (rad,
+    default 45 deg, the paper's pose), m/N.
 
     ``robot``: a loaded robot, or parameters (built with ``load(params)``; default the
-    prototype's). The translational block is the same in the ``paper`` and ``consistent`` models.
+    prototype's). The translational block is the same in the ``paper`` and ``consistent`` models;
+    the robot's optional elements are left out (eq. 30 alone).
     """
     h4 = robot if isinstance(robot, H4) else load(robot or H4Params())
-    res = compliance(h4, centre_pose(h4))
+    pose = centre_pose(h4) if q == np.pi / 4 else h4.forward_geometry(np.full(4, q))
+    res = compliance(h4, pose, elements=False)
     return {t: res.terms[t][:3, :3].copy() for t in TERMS}
+
+
+class Robustness(NamedTuple):
+    """The gap's conclusions for one perturbed robot or pose (:func:`robustness`), SI."""
+
+    name: str  #: what was changed
+    yy_xx: tuple[float, float]  #: range of yy/xx any spring constants reach (paper computed: 0.525)
+    zz_xx: tuple[float, float]  #: range of zz/xx (paper measured: 0.176)
+    least_miss: float  #: least largest miss against the computed table over all springs, m/N
+    meets: bool  #: least_miss within the table's rounding (the springs alone would close the gap)
+
+
+#: The perturbations of :func:`robustness`: actuator zero offsets and each unstated length.
+PERTURBATIONS = ("nominal", "q -3 deg", "q +3 deg", "half-width -5 %", "half-width +5 %", "C_k |y| -5 %",
+                 "C_k |y| +5 %", "C_k z -5 %", "C_k z +5 %")
+
+
+def _perturbed(name: str, base: H4Params) -> tuple[H4Params, float]:
+    q = np.pi / 4
+    if name.startswith("q "):
+        q += np.deg2rad(float(name.split()[1]))
+    elif name.startswith("half-width"):
+        base = base.replace(half_width=base.half_width * (1 + float(name.split()[1]) / 100))
+    elif name.startswith("C_k"):
+        axis = 1 if "|y|" in name else 2
+        dc = base.DC.copy()
+        dc[axis] *= 1 + float(name.split()[2]) / 100
+        base = base.replace(DC=dc)
+    return base, q
+
+
+def robustness(names: tuple[str, ...] = PERTURBATIONS, base: H4Params | None = None) -> list[Robustness]:
+    """The conclusions of sections 1-2 of ``docs/gap.md`` under each perturbation: an actuator zero
+    offset of +-3 deg (every actuator at 45 +- 3 deg instead of 45) and +-5 % on each length the
+    paper does not state (the parallelogram half-width; the revolute joints C_k's |y| and z)."""
+    base = base or H4Params()
+    out = []
+    for name in names:
+        params, q = _perturbed(name, base)
+        blocks = term_blocks(params, q)
+        miss = minimax_combination(blocks).max_abs
+        out.append(Robustness(name, ratio_range(blocks, "yy", "xx"), ratio_range(blocks, "zz", "xx"), miss,
+                              miss <= ROUNDING))
+    return out
 
 
 def two_shapes(blocks: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -171,6 +218,26 @@ def moved_joints(base: H4Params, dx: float, dy: float) -> H4Params:
     """``base`` with both revolute joints C_k moved by dx along x (along the lateral bars) and
     outwards by dy (|y| of C_k grows by dy); mirror symmetry about y = 0 is kept."""
     return base.replace(DC=_dc(base, dx, dy))
+
+
+def smallest_joint_offset(q: float = np.pi / 4, step: float = 2e-3, limit: float = 60e-3,
+                          base: H4Params | None = None) -> tuple[float, float, float] | None:
+    """The smallest move (dx, dy) of the revolute joints C_k (:func:`moved_joints`, on a grid of
+    ``step``, nearest first, up to ``limit``) at which some non-negative spring factors meet the
+    computed table within rounding, with every actuator at ``q``: (dx, dy, least miss) in m, m,
+    m/N, or None. A lower bound of the offset the gap needs (every spring free)."""
+    base = base or H4Params()
+    n = int(round(limit / step))
+    grid = [(i * step, j * step) for i in range(-n, n + 1) for j in range(-n, n + 1)
+            if np.hypot(i, j) * step <= limit]
+    for dx, dy in sorted(grid, key=lambda c: (np.hypot(*c), c)):
+        try:
+            miss = minimax_combination(term_blocks(moved_joints(base, dx, dy), q)).max_abs
+        except H4Error:  # a move the robot cannot take (unreachable centre, interfering bars)
+            continue
+        if miss <= ROUNDING:
+            return dx, dy, miss
+    return None
 
 
 @dataclasses.dataclass(frozen=True)

@@ -252,9 +252,118 @@ def _report(x: np.ndarray, names: tuple[str, ...], target: np.ndarray, sigma: fl
                                                                                          strict=True)})
 
 
+#: Candidate parameter sets for the measured table's symmetric part, by number of parameters: the
+#: measuring point alone, with one or both spring-shape factors (the tilt and axial factors act
+#: linearly on the two shapes of eq. 30), and the saturated set behind the ``measured_match``
+#: variant (8 parameters for 6 numbers).
+CANDIDATES: dict[str, tuple[str, ...]] = {
+    "point": ("p_x", "p_y", "p_z"),
+    "point+tilt": ("p_x", "p_y", "p_z", "tilt"),
+    "point+axial": ("p_x", "p_y", "p_z", "axial"),
+    "point_xz+tilt+axial": ("p_x", "p_z", "tilt", "axial"),
+    "point+tilt+axial": ("p_x", "p_y", "p_z", "tilt", "axial"),
+    "saturated": ONE_POINT_FIT,
+}
+#: The six numbers of a symmetric table: xx, yy, zz, xy, xz, yz.
+SYMMETRIC_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+def noise_from_antisymmetry(table: np.ndarray = gap.MEASURED) -> tuple[float, int]:
+    """Noise per entry (m/N) and its degrees of freedom from the antisymmetric part alone: with
+    a symmetric truth (Maxwell-Betti, a one-point model) and independent noise sigma per entry,
+    ``a_ij - a_ji ~ N(0, 2 sigma^2)``, so ``sigma^2 = sum_{i<j} (a_ij - a_ji)^2 / (2 * 3)`` with 3
+    degrees of freedom. It uses none of the numbers the fit of the symmetric part uses."""
+    t = np.asarray(table, dtype=float)
+    d = np.array([t[i, j] - t[j, i] for i, j in ((0, 1), (0, 2), (1, 2))])
+    return float(np.sqrt(np.sum(d**2) / 6.0)), 3
+
+
+def symmetric_data(table: np.ndarray = gap.MEASURED) -> tuple[np.ndarray, np.ndarray]:
+    """The six numbers of the symmetric part of ``table`` (:data:`SYMMETRIC_ENTRIES`) and their
+    noise (m/N): sigma on the diagonal, sigma / sqrt(2) off it (the mean of two entries)."""
+    t = np.asarray(table, dtype=float)
+    sym = 0.5 * (t + t.T)
+    sigma, _ = noise_from_antisymmetry(t)
+    return (np.array([sym[i, j] for i, j in SYMMETRIC_ENTRIES]),
+            np.array([sigma] * 3 + [sigma / np.sqrt(2.0)] * 3))
+
+
+class Selection(NamedTuple):
+    """One candidate of :func:`select`: a fit of the six symmetric numbers of the measured table.
+
+    ``k`` parameters, ``dof = 6 - k`` (negative: saturated, no test possible), ``chi2`` (sum of
+    squared residuals in their noise), ``aic = chi2 + 2 k`` (Akaike; Gaussian noise of known
+    sigma), ``loo`` (6,): each entry predicted by the fit of the other five, as
+    (prediction - measured) / noise, ``values`` the fitted parameters (SI) and ``at_bound`` those
+    that ended on a plausible bound."""
+
+    name: str
+    names: tuple[str, ...]
+    k: int
+    dof: int
+    chi2: float
+    aic: float
+    loo: np.ndarray
+    values: dict[str, float]
+    at_bound: tuple[str, ...]
+
+
+def _symmetric_fit(names: tuple[str, ...], data: np.ndarray, noise: np.ndarray, mask: np.ndarray, starts: int,
+                   seed: int) -> tuple[np.ndarray, float]:
+    lower = np.array([PARAMETERS[n].lower for n in names])
+    upper = np.array([PARAMETERS[n].upper for n in names])
+
+    def fn(x: np.ndarray) -> np.ndarray:
+        t = table(_values(names, x, {}, True))
+        sym = np.array([0.5 * (t[i, j] + t[j, i]) for i, j in SYMMETRIC_ENTRIES])
+        return ((sym - data) / noise)[mask]
+
+    rng = np.random.default_rng(seed)
+    x0 = np.clip([PARAMETERS[n].default for n in names], lower, upper)
+    best = None
+    for g in [x0] + [lower + rng.uniform(0.05, 0.95, len(names)) * (upper - lower) for _ in range(starts - 1)]:
+        sol = least_squares(fn, g, bounds=(lower, upper), x_scale=upper - lower, method="trf", diff_step=1e-6,
+                            xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=300)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    return best.x, 2.0 * float(best.cost)
+
+
+def select(candidates: dict[str, tuple[str, ...]] | None = None, target: np.ndarray = gap.MEASURED,
+           starts: int = 6, loo_starts: int = 3, seed: int = 0) -> list[Selection]:
+    """Fit each candidate parameter set to the six symmetric numbers of ``target`` with the noise
+    of its antisymmetric part (:func:`noise_from_antisymmetry`), and report degrees of freedom,
+    chi^2, AIC and leave-one-out predictions (:class:`Selection`), sorted by AIC."""
+    data, noise = symmetric_data(target)
+    full = np.ones(6, dtype=bool)
+    out = []
+    for name, names in (candidates or CANDIDATES).items():
+        x, chi2 = _symmetric_fit(names, data, noise, full, starts, seed)
+        loo = np.empty(6)
+        for e in range(6):
+            mask = full.copy()
+            mask[e] = False
+            xe, _ = _symmetric_fit(names, data, noise, mask, loo_starts, seed)
+            t = table(_values(names, xe, {}, True))
+            i, j = SYMMETRIC_ENTRIES[e]
+            loo[e] = (0.5 * (t[i, j] + t[j, i]) - data[e]) / noise[e]
+        lower = np.array([PARAMETERS[n].lower for n in names])
+        upper = np.array([PARAMETERS[n].upper for n in names])
+        tol = 1e-6 * (upper - lower)
+        bound = tuple(n for n, xi, lo, hi, t_ in zip(names, x, lower, upper, tol, strict=True)
+                      if xi - lo < t_ or hi - xi < t_)
+        k = len(names)
+        out.append(Selection(name, names, k, 6 - k, chi2, chi2 + 2 * k, loo,
+                             dict(zip(names, map(float, x), strict=True)), bound))
+    return sorted(out, key=lambda s: s.aic)
+
+
 def fit_measured_one_point(starts: int = 6) -> Fit:
-    """The fit behind the ``fitted`` variant: the measured Table II, force applied where the
-    displacement is measured (p' = p), robot quantities C_k, h, tilt, axial (:data:`ONE_POINT_FIT`)."""
+    """The fit behind the ``measured_match`` variant: the measured Table II, force applied where
+    the displacement is measured (p' = p), robot quantities C_k, h, tilt, axial
+    (:data:`ONE_POINT_FIT`). Saturated: 8 parameters for the 6 numbers a one-point model can
+    explain (the table's symmetric part), so it matches them whatever the noise; it identifies
+    nothing by itself (:func:`select` compares it with the smaller sets)."""
     return fit(gap.MEASURED, ONE_POINT_FIT, starts=starts, same_point=True)
 
 
@@ -268,18 +377,19 @@ FITTED_ROUNDING = {k: (0.05 * _MM if PARAMETERS[k].unit == "m" else 0.005) for k
 
 
 def fitted_values() -> dict[str, float]:
-    """All quantities of the ``fitted`` variant (:data:`FITTED`, the load point p' = p)."""
+    """All quantities of the ``measured_match`` variant (:data:`FITTED`, the load point p' = p)."""
     v = {k: p.default for k, p in PARAMETERS.items()} | FITTED
     return v | {"f_x": v["p_x"], "f_y": v["p_y"], "f_z": v["p_z"]}
 
 
 def fitted_params(base: H4Params | None = None) -> H4Params:
-    """The ``fitted`` variant: the prototype with C_k, half-width, tilt (I0) and axial (kc, E)
-    identified on the measured Table II (:data:`FITTED`). Never the default robot."""
+    """The ``measured_match`` variant: the prototype with C_k, half-width, tilt (I0) and axial (kc, E)
+    from the saturated fit of the measured Table II (:data:`FITTED`; 8 parameters for 6 numbers, so
+    one robot of a family that matches it, not an identification). Never the default robot."""
     return robot_params(FITTED, base)
 
 
 def fitted_point() -> np.ndarray:
-    """Where the ``fitted`` variant's Table II is taken (force and dial indicators), offset from D
-    in the central-bar frame, m (3,)."""
+    """Where the ``measured_match`` variant's Table II is taken (force and dial indicators), offset
+    from D in the central-bar frame, m (3,)."""
     return np.array([FITTED["p_x"], FITTED["p_y"], FITTED["p_z"]])

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """How each shipped variant is made (``scripts/generate_urdf.py`` writes ``urdf/h4_<name>.urdf``).
 
-The ``fitted`` variant comes out of the identification on the paper's measured Table II
+The ``measured_match`` variant comes out of a (saturated) fit of the paper's measured Table II
 (:func:`h4pin.studies.identify.fitted_params`, ``docs/gap.md``), which needs the stiffness model:
 that is why the generators live here, above it, and :data:`h4pin.VARIANTS` holds only the names.
 """
@@ -18,7 +18,7 @@ GENERATORS: dict[str, Callable[[], H4Params]] = {
     "prototype": H4Params,
     "symmetric": symmetric_params,
     "toleranced": toleranced_params,
-    "fitted": fitted_params,
+    "measured_match": fitted_params,
 }
 
 __all__ = ["GENERATORS"]
