@@ -41,6 +41,7 @@ from h4pin.errors import LoadError, ParameterError
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.stiffness import elements as element_model
+from h4pin.stiffness import kernel
 from h4pin.stiffness.eq30 import MODELS, TERMS, Raw
 from h4pin.stiffness.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, n_matrix
 from h4pin.verdicts import INVALID, OK, SINGULAR, SINGULAR_COND, raise_for_status, singular_message
@@ -249,9 +250,7 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
     if (not terms and method == "auto" and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
             and pose.dtype == np.float64 and math.isfinite(pose.sum()) and h4.geometry.ideal):
         # The fast path of one pose: one compiled call; anything but a regular pose goes the long way.
-        from h4pin.stiffness import kernel
-
-        K, q, cond, status = kernel.for_geometry(h4.geometry)(pose, model)
+        K, q, cond, status = kernel.one(kernel.for_geometry(h4.geometry), pose, MODELS.index(model))
         if status == OK:
             x = pose.copy()
             if active is not None:

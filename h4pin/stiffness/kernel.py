@@ -395,6 +395,12 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     return res
 
 
+def one(kern: Kernel, x: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """:meth:`Kernel.__call__` without its checks, for a caller that has checked them: ``x`` a
+    finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent)."""
+    return _one(x, kern.packed, code)
+
+
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
     """K (8, 8), q (4,), condition, status at one pose. Pass a :class:`Kernel` (:func:`prepare`)
     for the fast path; a geometry object is packed at every call."""
