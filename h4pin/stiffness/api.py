@@ -262,13 +262,19 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
         # One regular pose on any backend: straight to it (a bad pose goes the long way for its error).
         x = pose.copy()
         x.setflags(write=False)
-        r = _backend(h4, method)(h4, x[None], model, False)
-        if r.status[0] == OK:
-            K = r.matrix[0]
+        if method == "pinocchio" and h4.geometry.ideal:
+            from h4pin.stiffness import pinocchio as pinocchio_backend
+
+            got = pinocchio_backend.one(h4, x, MODELS.index(model))
+            K, q, cond, status = got if got is not None else (None, None, np.nan, -1)
+        else:
+            r = _backend(h4, method)(h4, x[None], model, False)
+            K, q, cond, status = r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0])
+        if status == OK:
             if active is not None:
                 K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
             return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms), x,
-                              r.q[0], model, float(r.condition[0]), 0, None, active)
+                              q, model, cond, 0, None, active)
     res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
     if terms:
         return res

@@ -144,6 +144,19 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
     return Raw(matrix, out, q, cond, status)
 
 
+def one(h4, x: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """One finite pose of a robot with exact parallelograms, without the batch set-up of
+    :func:`backend`: (K, q, condition, status), or None when the closed form refuses the pose
+    (the caller then takes the long way, which names the reason)."""
+    from h4pin.stiffness import kernel
+
+    _, q, _, status = kernel.one(kernel.for_geometry(h4.geometry), x, code)
+    if status not in (OK, SINGULAR):
+        return None
+    K, _, cond, status, _ = _at_state(h4, _rigid_states(x[None], q[None])[0], code, False, h4.data)
+    return K, q, float(cond), int(status)
+
+
 def _rigid_states(x: np.ndarray, q: np.ndarray) -> list[cf.PlateState]:
     """:func:`h4pin.kinematics.closed_form.rigid_state` pose by pose (cheaper for a few poses)."""
     out = []
