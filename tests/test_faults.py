@@ -263,3 +263,40 @@ def test_atlas_killed_while_saving_leaves_nothing_behind(tmp_path):
         for name in ref.data_vars:
             np.testing.assert_array_equal(got[name].values, ref[name].values)
     assert not [p for p in tmp_path.iterdir() if "h4pin-tmp" in p.name]
+
+
+def dead_pid() -> int:
+    """A pid that no process has (the highest pid the kernel hands out, plus one)."""
+    return int(Path("/proc/sys/kernel/pid_max").read_text()) + 1
+
+
+def test_what_a_kill_during_a_save_leaves_is_removed_by_the_next_save(tmp_path, proto):
+    """A save killed half-way leaves ``.NAME.h4pin-tmp-PID-*`` beside its target (its process is
+    dead): the next write to that target removes it; a live process's temporary is kept."""
+    from h4pin.files import write_text
+    from h4pin.studies import atlas
+
+    ds = atlas.atlas(proto, [0.0, 0.01], [0.0], [-0.6], progress=False)
+    for name in ("a.zarr", "a.nc", "page.html"):
+        stale = tmp_path / f".{name}.h4pin-tmp-{dead_pid()}-abc"
+        stale.mkdir()
+        (stale / "half-written").write_bytes(b"x" * 100)
+        alive = tmp_path / f".{name}.h4pin-tmp-{os.getpid()}-def"
+        alive.write_text("another save, still running")
+        if name == "page.html":
+            write_text(tmp_path / name, "<html></html>")
+        else:
+            atlas.save(ds, tmp_path / name)
+            np.testing.assert_array_equal(atlas.open_atlas(tmp_path / name).status.values, ds.status.values)
+        assert not stale.exists() and alive.exists()
+        alive.unlink()
+
+
+def test_an_unfinished_sweep_store_names_the_command_that_cleans_it(tmp_path):
+    zarr = pytest.importorskip("zarr")
+    from h4pin.studies import sweep
+
+    store = tmp_path / "old.zarr"
+    zarr.open_group(str(store), mode="w")  # what a kill left before stores were created whole
+    with pytest.raises(h4pin.ParameterError, match=f"rm -r {store}"):
+        sweep.run(store, sweep.Spec(n_designs=4, chunk=2), progress=False)
