@@ -29,7 +29,7 @@ from h4pin.description.geometry import BAR_CLEARANCE, params_from_geometry
 from h4pin.description.params import VARIANTS, H4Params
 from h4pin.description.reader import read
 from h4pin.description.urdf import decode, to_urdf
-from h4pin.errors import ParameterError, URDFNotFoundError
+from h4pin.errors import H4Error, ParameterError, URDFNotFoundError
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
@@ -116,6 +116,9 @@ class H4:
         actuated_joint_names: the 4 actuated joints, leg order.
         v_act, v_pas: Velocity indices of the 4 actuators and of the passive joints.
         index: where the parts sit in the model (:class:`h4pin.description.reader.Index`).
+        q0: (nq,) the assembled configuration with every actuator at 45 deg (the paper's pose),
+            also ``model.referenceConfigurations["q0"]`` (Pinocchio's convention); None if the
+            robot does not assemble there.
         urdf: The URDF text; source: where it came from.
     """
 
@@ -127,6 +130,20 @@ class H4:
         values = dict(desc._asdict(), urdf=urdf_text, source=source, _local=threading.local())
         for name, value in values.items():
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "q0", self._reference_configuration())
+
+    def _reference_configuration(self) -> np.ndarray | None:
+        """The assembled configuration with every actuator at 45 deg (the paper's pose), stored as
+        Pinocchio's ``model.referenceConfigurations["q0"]`` (read-only here); None for a robot that
+        does not assemble there."""
+        try:
+            q0 = kin.configuration(self, cf.centre_pose(self), check=False)
+        except H4Error:
+            return None
+        self.model.referenceConfigurations["q0"] = q0  # the model is not shared yet
+        q0 = q0.copy()
+        q0.setflags(write=False)
+        return q0
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"an H4 is immutable once loaded (cannot set {name!r}); load another one")

@@ -136,3 +136,20 @@ def test_gravity_torques_against_potential_energy(proto, poses):
 def test_gravity_torques_change_sign_with_gravity(proto, centre):
     tau = proto.gravity_torques(centre)
     np.testing.assert_allclose(proto.gravity_torques(centre, gravity=[0, 0, 9.81]), -tau, rtol=1e-12)
+
+
+@pytest.mark.parametrize("variant", h4pin.VARIANTS)
+def test_q0_is_the_assembled_reference_configuration(variant):
+    """h4.q0 and model.referenceConfigurations["q0"] (Pinocchio's convention) are the configuration
+    with every actuator at 45 deg, all loops closed; the shipped SRDF's q0 agrees to its rounding
+    (1 um, 1 urad on the pose)."""
+    from h4pin.robot import urdf_dir
+
+    h4 = h4pin.load(variant)
+    assert h4.q0 is not None and not h4.q0.flags.writeable
+    np.testing.assert_array_equal(h4.model.referenceConfigurations["q0"], h4.q0)
+    assert np.abs(h4.closure_residuals(h4.q0)).max() < 1e-12
+    np.testing.assert_allclose(h4.q0[h4.index.q_act], np.pi / 4, atol=1e-9)
+    model = pin.buildModelFromUrdf(str(urdf_dir() / f"h4_{variant}.urdf"))
+    pin.loadReferenceConfigurations(model, str(urdf_dir().parent / "srdf" / f"h4_{variant}.srdf"))
+    np.testing.assert_allclose(model.referenceConfigurations["q0"], h4.q0, atol=1e-5)
