@@ -300,3 +300,18 @@ def test_an_unfinished_sweep_store_names_the_command_that_cleans_it(tmp_path):
     zarr.open_group(str(store), mode="w")  # what a kill left before stores were created whole
     with pytest.raises(h4pin.ParameterError, match=f"rm -r {store}"):
         sweep.run(store, sweep.Spec(n_designs=4, chunk=2), progress=False)
+
+
+@pytest.mark.parametrize(("command", "hidden"), [("atlas", "xarray"), ("sweep", "zarr")])
+def test_a_command_whose_extra_is_missing_names_it(tmp_path, command, hidden):
+    """Without the 'studies' extra (its module hidden), h4pin atlas / sweep say which extra to
+    install, in one line, exit 2, nothing written."""
+    out_path = str(tmp_path / ("o.nc" if command == "atlas" else "o.zarr"))
+    code = (f"import sys; sys.modules[{hidden!r}] = None; from h4pin import cli; "
+            f"sys.argv = ['h4pin', {command!r}, '--out', {out_path!r}, '--quiet']; cli.main()")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    lines = [line for line in out.stderr.splitlines() if not line.startswith("h4pin: first run")]
+    assert out.returncode == 2 and len(lines) == 1, out.stderr
+    assert "pip install 'h4pin[studies]'" in lines[0] and hidden in lines[0]
+    assert not list(tmp_path.iterdir())

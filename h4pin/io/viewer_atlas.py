@@ -24,12 +24,16 @@ from __future__ import annotations
 import matplotlib
 import meshcat.geometry as mg
 import numpy as np
-import xarray as xr
 
-from h4pin import verdicts
-from h4pin.errors import ParameterError
-from h4pin.io.viewer import Scene
-from h4pin.studies.atlas import QUANTITIES
+from h4pin.extras import require
+
+require("xarray", extra="studies", what="the atlas point cloud (h4pin.io.viewer_atlas)")
+import xarray as xr  # noqa: E402
+
+from h4pin import verdicts  # noqa: E402
+from h4pin.errors import ParameterError  # noqa: E402
+from h4pin.io.viewer import Scene  # noqa: E402
+from h4pin.studies.atlas import QUANTITIES  # noqa: E402
 
 
 def atlas_points(ds: xr.Dataset, quantity: str = "compliance_max", theta: float | None = None,

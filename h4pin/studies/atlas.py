@@ -28,15 +28,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import xarray as xr
 from tqdm import tqdm
 
-from h4pin import verdicts
-from h4pin.description.geometry import geometry_from_params
-from h4pin.description.params import H4Params
-from h4pin.errors import ParameterError
-from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
-from h4pin.stiffness import kernel
+from h4pin.extras import require
+
+require("xarray", extra="studies", what="the atlas (h4pin.studies.atlas)")
+import xarray as xr  # noqa: E402
+
+from h4pin import verdicts  # noqa: E402
+from h4pin.description.geometry import geometry_from_params  # noqa: E402
+from h4pin.description.params import H4Params  # noqa: E402
+from h4pin.errors import ParameterError  # noqa: E402
+from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
+from h4pin.stiffness import kernel  # noqa: E402
 
 #: The quantities of an atlas, with their units and a description.
 QUANTITIES = dict(
@@ -203,6 +207,7 @@ def save(ds: xr.Dataset, path: str | Path) -> Path:
         ParameterError: as :func:`check_out`.
     """
     path = check_out(path)
+    require("h5netcdf" if path.suffix == ".nc" else "zarr", extra="studies", what=f"writing {path.suffix} atlases")
     clean_stale(path)
     tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
     try:

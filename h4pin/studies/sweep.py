@@ -37,6 +37,7 @@ from h4pin import verdicts
 from h4pin.description.geometry import geometry_from_params
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
+from h4pin.extras import require
 from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
 from h4pin.stiffness import kernel
 
@@ -273,6 +274,9 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
         raise ParameterError(f"workers must be an integer >= 1 (Dask workers), got {workers!r}")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")
+    require("zarr", extra="studies", what="the design sweep (h4pin.studies.sweep)")
+    if workers is not None or scheduler is not None:
+        require("distributed", extra="studies", what="a sweep on Dask")
     path = check_store(path)
     if scheduler is not None:
         check_scheduler(scheduler)
