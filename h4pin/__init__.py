@@ -8,11 +8,15 @@ compiled core; elements; :func:`compliance`) -> :mod:`h4pin.studies` and :mod:`h
 :mod:`h4pin.checks` holds the independent validation routes.
 """
 
-from h4pin import _compat  # noqa: F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
-from h4pin.description.elements import Elements
-from h4pin.description.geometry import H4Geometry
-from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params
-from h4pin.errors import (
+from h4pin import _numba_cache
+
+_numba_cache.configure()  # a read-only install caches compiled code elsewhere (before any is defined)
+
+from h4pin import _compat  # noqa: E402, F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
+from h4pin.description.elements import Elements  # noqa: E402
+from h4pin.description.geometry import H4Geometry  # noqa: E402
+from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params  # noqa: E402
+from h4pin.errors import (  # noqa: E402
     ConvergenceError,
     H4Error,
     InterferenceError,
@@ -25,9 +29,9 @@ from h4pin.errors import (
     UnreachablePoseError,
     URDFNotFoundError,
 )
-from h4pin.kinematics.pinocchio import Kinematics
-from h4pin.robot import H4, load
-from h4pin.stiffness.api import Compliance, compliance
+from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
+from h4pin.robot import H4, load  # noqa: E402
+from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
 
 __version__ = "0.1.0"
 

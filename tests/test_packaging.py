@@ -8,6 +8,7 @@ import importlib
 import importlib.util
 import os
 import re
+import shutil
 import stat
 import subprocess
 import sys
@@ -16,6 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+import h4pin
+from h4pin.kinematics.closed_form import centre_pose
 
 ROOT = Path(__file__).resolve().parent.parent
 #: sha256 of the Apache License 2.0 as published at https://www.apache.org/licenses/LICENSE-2.0.txt
@@ -167,3 +171,33 @@ def test_every_cited_h4pin_name_exists():
         except (ImportError, AttributeError):
             missing.append(name)
     assert not missing, f"cited but not defined: {missing}"
+
+
+def test_a_read_only_install_imports_and_computes(tmp_path):
+    """With the package folder and $HOME read-only (a system or container install), h4pin imports
+    and computes: numba's cache goes to a per-user temporary folder (read-only bind mounts in a
+    private mount namespace; skipped where the machine does not allow one)."""
+    if shutil.which("unshare") is None:
+        pytest.skip("no unshare command")
+    copy, home = tmp_path / "site", tmp_path / "home"
+    home.mkdir()
+    shutil.copytree(ROOT / "h4pin", copy / "h4pin", ignore=shutil.ignore_patterns("__pycache__"))
+    for data in ("urdf", "srdf"):
+        shutil.copytree(ROOT / data, copy / data)
+    cache = tmp_path / "tmp"
+    cache.mkdir()
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import h4pin, numpy as np; "
+            "from h4pin.kinematics.closed_form import centre_pose; h = h4pin.load(); "
+            "assert h4pin.__file__.startswith(sys.argv[1]); "
+            "r = h4pin.compliance(h, centre_pose(h), method='closed_form'); print(r.translational[0, 0]); "
+            "from h4pin import _numba_cache; print(_numba_cache.configure())")
+    script = (f"mount --bind -o ro {copy} {copy} && mount --bind -o ro {home} {home} && "
+              f"HOME={home} TMPDIR={cache} {sys.executable} -c \"{code}\" {copy}")
+    out = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=300,
+                         env={k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"})
+    if "mount" in out.stderr and out.returncode != 0 and "Error" not in out.stderr:
+        pytest.skip(f"no private read-only mounts here: {out.stderr.strip()}")
+    assert out.returncode == 0, out.stderr
+    kxx, folder = out.stdout.split()
+    assert float(kxx) == pytest.approx(h4pin.compliance(h4pin.load(), centre_pose(h4pin.load())).translational[0, 0])
+    assert folder.startswith(str(cache)) and any(Path(folder).iterdir())  # compiled code cached there
