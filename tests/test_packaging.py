@@ -195,7 +195,7 @@ def test_a_read_only_install_imports_and_computes(tmp_path):
               f"HOME={home} TMPDIR={cache} {sys.executable} -c \"{code}\" {copy}")
     out = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=300,
                          env={k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"})
-    if "mount" in out.stderr and out.returncode != 0 and "Error" not in out.stderr:
+    if out.returncode != 0 and "Traceback" not in out.stderr:  # unshare or mount refused: Python never ran
         pytest.skip(f"no private read-only mounts here: {out.stderr.strip()}")
     assert out.returncode == 0, out.stderr
     kxx, folder = out.stdout.split()
