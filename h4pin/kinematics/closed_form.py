@@ -61,8 +61,11 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def as_poses(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
     """Check and convert a pose (4,) or a batch (N, 4) to float64; clear error otherwise."""
-    if np.iscomplexobj(pose) or (isinstance(pose, (list, tuple)) and any(isinstance(v, complex) for v in
-                                                                         np.ravel(np.asarray(pose, dtype=object)))):
+    try:
+        complex_input = np.iscomplexobj(pose)  # lists too (it reads their dtype)
+    except (TypeError, ValueError):  # ragged: refused below
+        complex_input = False
+    if complex_input:
         raise PoseError(f"{name} must be real numbers [x, y, z, theta], got {pose!r}")
     try:
         x = np.asarray(pose, dtype=float)

@@ -157,8 +157,7 @@ def closure_residuals(h4, q: np.ndarray, data: pin.Data | None = None) -> np.nda
     d = h4.data if data is None else data
     pin.forwardKinematics(h4.model, d, q)
     out = np.empty((8, 3))
-    for n, cm in enumerate(h4.constraint_models):
-        cd = cm.createData()
+    for n, (cm, cd) in enumerate(zip(h4.constraint_models, h4.constraint_datas, strict=True)):
         cm.calc(h4.model, d, cd)
         out[n] = cd.c1Mc2.translation
     return out
@@ -173,11 +172,9 @@ def passive_map(h4, q: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
     """
     m, d = h4.model, h4.data if data is None else data
     pin.computeJointJacobians(m, d, q)
-    datas = pin.StdVec_RigidConstraintData()
-    for cm in h4.constraint_models:
-        cd = cm.createData()
+    datas = h4.constraint_datas  # the calling thread's own
+    for cm, cd in zip(h4.constraint_models, datas, strict=True):
         cm.calc(m, d, cd)
-        datas.append(cd)
     jc = pin.getConstraintsJacobian(m, d, h4.constraint_models, datas)
     jp, ja = jc[:, h4.v_pas], jc[:, h4.v_act]
     try:

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from h4pin.description.elements import Elements
+from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.errors import LoadError, ParameterError
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
@@ -247,40 +247,43 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
     """
     _check_options(model, on_error, method)
     active = _elements_of(h4, elements)
-    if (not terms and method == "auto" and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
-            and pose.dtype == np.float64 and math.isfinite(pose.sum()) and h4.geometry.ideal):
-        # The fast path of one pose: one compiled call; anything but a regular pose goes the long way.
-        K, q, cond, status = kernel.one(kernel.for_geometry(h4.geometry), pose, MODELS.index(model))
-        if status == OK:
-            x = pose.copy()
-            if active is not None:
-                K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
-            return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms), x, q,
-                              model, cond, 0, None, active)
     if (not terms and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
             and pose.dtype == np.float64 and math.isfinite(pose.sum())):
-        # One regular pose on any backend: straight to it (a bad pose goes the long way for its error).
+        # One regular pose: straight to its backend (a bad pose goes the long way for its error).
         x = pose.copy()
         x.setflags(write=False)
-        if method == "pinocchio" and h4.geometry.ideal:
-            from h4pin.stiffness import pinocchio as pinocchio_backend
-
-            got = pinocchio_backend.one(h4, x, MODELS.index(model))
-            K, q, cond, status = got if got is not None else (None, None, np.nan, -1)
-        else:
-            r = _backend(h4, method)(h4, x[None], model, False)
-            K, q, cond, status = r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0])
+        K, q, cond, status = _one_pose(h4, x, model, method)
         if status == OK:
             if active is not None:
                 K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
-            return Compliance(K, LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms), x,
-                              q, model, cond, 0, None, active)
+            return Compliance(K, _lazy_terms(h4, x, model, method, active), x, q, model, cond, 0, None, active)
     res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
     if terms:
         return res
-    x = res.pose
-    return dataclasses.replace(res, terms=LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True,
-                                                                         active).terms))
+    return dataclasses.replace(res, terms=_lazy_terms(h4, res.pose, model, method, active))
+
+
+def _one_pose(h4, x: np.ndarray, model: str, method: str) -> tuple[Any, Any, float, int]:
+    """K, q, condition and status of one finite pose on ``method``'s backend, with the compiled
+    one-pose calls where they apply (no batch set-up); status -1 when the closed form refuses
+    the pose before Pinocchio runs (the long way then names the reason)."""
+    code = MODELS.index(model)
+    if method == "auto" and h4.geometry.ideal:
+        K, q, cond, status = kernel.one(kernel.for_geometry(h4.geometry), x, code)
+        return K, q, float(cond), int(status)
+    if method == "pinocchio" and h4.geometry.ideal:
+        from h4pin.stiffness import pinocchio as pinocchio_backend
+
+        got = pinocchio_backend.one(h4, x, code)
+        return got if got is not None else (None, None, np.nan, -1)
+    r = _backend(h4, method)(h4, x[None], model, False)
+    return r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0])
+
+
+def _lazy_terms(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> LazyTerms:
+    """The terms of a result, computed on first access by the same backend (``x`` is the result's
+    own read-only pose)."""
+    return LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms)
 
 
 def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: bool,
@@ -296,7 +299,7 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
     single = x.ndim == 1
     xb = x[None] if single else x
     n = len(xb)
-    names = TERMS + tuple(name for name in _element_names(active))
+    names = TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
     matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
     cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
     out_terms = {t: np.full((n, 8, 8), np.nan) for t in names} if keep else None
@@ -324,14 +327,6 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
         return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()}, x, q[0],
                           model, float(cond[0]), int(status[0]), None if valid is None else np.array(valid[0]), active)
     return Compliance(matrix, out_terms, x, q, model, cond, status, valid, active)
-
-
-def _element_names(active: Elements | None) -> tuple[str, ...]:
-    if active is None:
-        return ()
-    from h4pin.description.elements import ELEMENTS
-
-    return tuple(name for name in ELEMENTS if active.on(name))
 
 
 def _detail(h4, x: np.ndarray, status: int, cond: float, k: int) -> str:
