@@ -315,17 +315,29 @@ def sweep(
             typer.echo(f"wrote {path}")
 
 
-COMPUTING = ("table2", "view", "tolerance", "atlas", "sweep")
+@app.command()
+def warmup() -> None:
+    """Compile the compliance kernels into numba's cache now (else the first calls after an install
+    use the numpy path while they compile in the background)."""
+    from h4pin.warmup import compile_all
+
+    total = compile_all(lambda name, seconds: typer.echo(f"compiled {name} in {seconds:.1f} s"))
+    typer.echo(f"compiled code cached ({total:.1f} s)")
+
+
+#: Commands that call the compiled kernel directly (the others start on the numpy path while it
+#: compiles in the background: h4pin._jit).
+COMPILING = ("tolerance", "atlas", "sweep")
 
 
 def note_first_compile(argv: list[str]) -> None:
     """Say so on stderr before a command whose first run compiles the kernels."""
-    if argv and argv[0] in COMPUTING and "--help" not in argv:
+    if argv and argv[0] in COMPILING and "--help" not in argv:
         from h4pin.stiffness import kernel
 
         if not kernel.cached():
-            typer.echo("h4pin: first run: compiling the compliance kernels (10-30 s, once; cached afterwards)",
-                       err=True)
+            typer.echo("h4pin: first run: compiling the compliance kernels (20-40 s, once; cached afterwards; "
+                       "`h4pin warmup` does it ahead)", err=True)
 
 
 def main() -> None:

@@ -12,6 +12,7 @@ implementation and the kernel are compared to h4pin's result, so the table is on
 they agree.
 
     python scripts/bench.py [--batch 100000] [--repeat 3] [--big] [--dask] [--sweep]
+    python scripts/bench.py --cold   # first use after an install: fresh processes, empty numba cache
 """
 
 from __future__ import annotations
@@ -157,7 +158,12 @@ def main() -> None:
     parser.add_argument("--dask", action="store_true", help="also measure the Dask overhead per task")
     parser.add_argument("--sweep", action="store_true", help="also time 10 000 designs x 1 000 poses")
     parser.add_argument("--designs", type=int, default=10_000, help="designs in the sweep row")
+    parser.add_argument("--cold", action="store_true",
+                        help="only time first use: each row in a fresh process with an empty numba cache")
     args = parser.parse_args()
+    if args.cold:
+        cold_table()
+        return
     h4 = h4pin.load("prototype")
     rng = np.random.default_rng(0)
     poses = centre_pose(h4) + rng.uniform(-1, 1, (args.batch, 4)) * [0.1, 0.1, 0.06, 0.4]
@@ -254,6 +260,68 @@ def main() -> None:
                 print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
     if args.tolerance:
         bench_tolerance()
+
+
+COLD_STEPS = {
+    "import h4pin": "",
+    "h4pin.load()": "h4 = h4pin.load()",
+    "first single pose, compliance(h4, x)": "h4pin.compliance(h4, x)",
+    "first batch of 1000 poses": "h4pin.compliance(h4, xs)",
+    "first pose on the Pinocchio path": "h4pin.compliance(h4, x, method='pinocchio')",
+}
+COLD_SCRIPT = """
+import time, json
+t = time.perf_counter(); import numpy as np, h4pin; out = {{'import h4pin': time.perf_counter() - t}}
+from h4pin.kinematics.closed_form import centre_pose
+for name, code in {steps!r}.items():
+    if not code:
+        continue
+    t = time.perf_counter(); exec(code); out[name] = time.perf_counter() - t
+    if name == 'h4pin.load()':
+        x = centre_pose(h4); xs = x + np.random.default_rng(0).uniform(-1, 1, (1000, 4)) * [0.05, 0.05, 0.03, 0.2]
+print(json.dumps(out))
+"""
+
+
+def cold_run(args: list[str], mode: str) -> tuple[float, str]:
+    """Wall time and stdout of a fresh process with an empty numba cache, ``H4PIN_WARMUP=mode``."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, H4PIN_WARMUP=mode)
+        t = time.perf_counter()
+        out = subprocess.run([sys.executable, *args], env=env, capture_output=True, text=True, check=True)
+        return time.perf_counter() - t, out.stdout
+
+
+def cold_table() -> None:
+    """First use in fresh processes with an empty cache: h4pin's default (numpy path and
+    interpreted twins while a warm-up compiles; measured with the warm-up off, so that the row is
+    the call's own time) against compiling at first use (``H4PIN_WARMUP=inline``, before)."""
+    import json
+    import shutil
+    import sys
+
+    cli = shutil.which("h4pin") or str(__import__("pathlib").Path(sys.executable).parent / "h4pin")
+    rows = {}
+    for mode in ("off", "inline"):
+        rows.setdefault("first `h4pin table2` (whole command)", {})[mode] = cold_run(
+            ["-c", f"import sys; sys.argv = [{cli!r}, 'table2']; from h4pin.cli import main; main()"], mode)[0]
+        steps = json.loads(cold_run(["-c", COLD_SCRIPT.format(steps=COLD_STEPS)], mode)[1])
+        for name, seconds in steps.items():
+            rows.setdefault(name, {})[mode] = seconds
+    warm = cold_run(["-m", "h4pin.warmup", "--quiet"], "inline")[0]
+    rows["`h4pin warmup` (compile everything, once)"] = {"off": warm}
+    print(f"h4pin first use, {platform.processor() or platform.machine()}, empty numba cache, one fresh process "
+          f"per column\n")
+    print(f"| {'first use':<45} | {'now (s)':>8} | {'compiling at first use (s)':>27} |")
+    print(f"|{'-' * 47}|{'-' * 10}|{'-' * 29}|")
+    for name, t in rows.items():
+        inline = f"{t['inline']:.2f}" if "inline" in t else "-"
+        print(f"| {name:<45} | {t['off']:>8.2f} | {inline:>27} |")
 
 
 def atlas_row(h4: h4pin.H4, repeat: int) -> float:

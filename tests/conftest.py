@@ -13,8 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import h4pin
-from h4pin.kinematics.closed_form import centre_pose
+# Compiled code at first use, in this process (no numpy fallback, no background warm-up): the
+# suite's numbers do not depend on when a warm-up finishes. tests/test_jit.py covers the fallback.
+os.environ["H4PIN_WARMUP"] = "inline"
+
+import h4pin  # noqa: E402
+from h4pin.kinematics.closed_form import centre_pose  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from h4pin import _jit
 from h4pin.errors import ParameterError, SingularPoseError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import closed_form as cf
@@ -32,6 +33,8 @@ from h4pin.kinematics.closed_form import PlateState, Points
 from h4pin.verdicts import CLOSURE_SINGULAR_COND, raise_for_status
 
 _PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: The compiled configuration is cached (else its interpreted twin runs: :mod:`h4pin._jit`).
+CONFIGURATION = _jit.Gate("configuration", _compiled.configuration_packed)
 
 
 class Kinematics(NamedTuple):
@@ -72,7 +75,8 @@ def assemble(h4, st: PlateState) -> np.ndarray:
     """
     q, D, R, omega = (np.ascontiguousarray(a, dtype=float) for a in st)
     floats, ints = _configuration_pack(h4)
-    return _compiled.configuration_packed(h4.index.q_neutral.copy(), q, D, R, omega, floats, ints)
+    fill = _compiled.configuration_packed if CONFIGURATION.ready else _jit.interpreted(_compiled.configuration_packed)
+    return fill(h4.index.q_neutral.copy(), q, D, R, omega, floats, ints)
 
 
 def _configuration_pack(h4) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,8 @@ Backends (``method``), one verdict per pose on all of them (:mod:`h4pin.verdicts
 (the compiled closed form, :mod:`h4pin.stiffness.kernel`), ``"closed_form"`` (the numpy reference,
 any robot), ``"pinocchio"`` (Pinocchio's Jacobians and the compiled core,
 :mod:`h4pin.stiffness.pinocchio`); ``"auto"`` takes the kernel when it applies (exact
-parallelograms), else the numpy reference. Each is a module with a ``backend`` function listed
+parallelograms) and is compiled, else the numpy reference (the first calls after an install
+do not wait for the compiler: :mod:`h4pin._jit`). Each is a module with a ``backend`` function listed
 in :data:`BACKENDS`.
 """
 
@@ -216,8 +217,8 @@ def _elements_of(h4, elements: Elements | bool | None) -> Elements | None:
 
 
 def _backend(h4, method: str) -> Callable[..., Raw]:
-    if method == "auto":
-        method = "kernel" if h4.geometry.ideal else "closed_form"
+    if method == "auto":  # the kernel once compiled (h4pin._jit), for exact parallelograms
+        method = "kernel" if h4.geometry.ideal and kernel.BATCH.ready else "closed_form"
     return importlib.import_module(BACKENDS[method]).backend
 
 
@@ -268,10 +269,10 @@ def _one_pose(h4, x: np.ndarray, model: str, method: str) -> tuple[Any, Any, flo
     one-pose calls where they apply (no batch set-up); status -1 when the closed form refuses
     the pose before Pinocchio runs (the long way then names the reason)."""
     code = MODELS.index(model)
-    if method == "auto" and h4.geometry.ideal:
+    if method == "auto" and h4.geometry.ideal and kernel.ONE.ready:
         K, q, cond, status = kernel.one(kernel.for_geometry(h4.geometry), x, code)
         return K, q, float(cond), int(status)
-    if method == "pinocchio" and h4.geometry.ideal:
+    if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready:
         from h4pin.stiffness import pinocchio as pinocchio_backend
 
         got = pinocchio_backend.one(h4, x, code)

@@ -24,6 +24,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from h4pin import _jit
 from h4pin.description.geometry import H4Geometry
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
@@ -327,6 +328,12 @@ def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, bloc
             status[p] = s
 
 
+#: Whether the one-pose and the batch kernel are compiled (:mod:`h4pin._jit`): until then
+#: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call.
+ONE = _jit.Gate("one-pose kernel", _one)
+BATCH = _jit.Gate("batch kernel", _batch)
+
+
 # ----------------------------------------------------------------------------------------------
 # Python API
 
@@ -436,14 +443,9 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
 
 
 def cached() -> bool:
-    """Whether numba's on-disk cache holds the compiled kernel (else the first call compiles it,
-    10 to 30 s once)."""
-    import os
-
-    try:
-        return all(os.path.exists(f._cache._cache_file._index_path) for f in (_one, _batch))
-    except AttributeError:  # another numba's cache layout: do not guess
-        return True
+    """Whether the compiled kernels are ready (compiled here, or current in numba's on-disk
+    cache); else a call that needs them compiles them, 10 to 30 s once."""
+    return ONE.cached() and BATCH.cached()
 
 
 def threads() -> int:

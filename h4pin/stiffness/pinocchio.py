@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from h4pin import _jit
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.stiffness import core
@@ -89,6 +90,10 @@ def _pose(J, H, F, I, model, want_terms):  # noqa: E741  # pragma: no cover - co
     return K, terms, cond, status, Jo
 
 
+#: Whether :func:`_pose` is compiled (else its interpreted twin runs: :mod:`h4pin._jit`).
+POSE = _jit.Gate("Pinocchio path", _pose)
+
+
 def _pack(h4) -> tuple[np.ndarray, np.ndarray]:
     """The robot's constants for :func:`_pose`, packed once per robot (a read-only cache keyed by
     the robot, outside it)."""
@@ -113,9 +118,9 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
 
     n = len(x)
     g = h4.geometry
-    if g.ideal:  # the compiled closed form's verdicts (the same on every path, tested)
-        from h4pin.stiffness import kernel
+    from h4pin.stiffness import kernel
 
+    if g.ideal and (kernel.ONE if n == 1 else kernel.BATCH).ready:  # the compiled closed form's verdicts
         kern = kernel.for_geometry(g)
         if n == 1:  # no thread start-up for one pose
             _, q1, _, s1 = kern(x[0], model)
@@ -172,7 +177,8 @@ def _at_state(h4, st: cf.PlateState, code: int, want_terms: bool, d: pin.Data):
     pin.computeJointJacobians(h4.model, d, q)
     homog = np.array([d.oMi[j].homogeneous for j in h4.index.point_joints])
     F, I = _pack(h4)  # noqa: E741
-    return _pose(d.J, homog, F, I, code, want_terms)
+    pose = _pose if POSE.ready else _jit.interpreted(_pose)
+    return pose(d.J, homog, F, I, code, want_terms)
 
 
 __all__ = ["backend"]

@@ -1,0 +1,83 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Compile h4pin's numba functions into numba's on-disk cache now, instead of at first use.
+
+``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
+first need: the Pinocchio configuration (``h4pin.load``), the one-pose kernel, the Pinocchio path
+and the batch kernel. After it, every call starts compiled. h4pin starts this module by itself in
+the background the first time a call needs code that is not compiled yet (:mod:`h4pin._jit`);
+run it yourself where a first call must be fast, e.g. after ``pip install`` in a Dockerfile.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+
+def steps() -> list[tuple[str, Callable[[], object]]]:
+    """The compile steps (name, call), in order of first need."""
+    from h4pin.kinematics import closed_form as cf
+    from h4pin.robot import load
+    from h4pin.stiffness.api import compliance
+
+    state: dict[str, object] = {}
+
+    def configuration() -> object:
+        state["h4"] = load()
+        return state["h4"]
+
+    def pose() -> np.ndarray:
+        return cf.centre_pose(state["h4"])
+
+    return [("configuration (h4pin.load)", configuration),
+            ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
+            ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
+            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel"))]
+
+
+def compile_all(progress: Callable[[str, float], None] | None = None) -> float:
+    """Compile every function into numba's cache (loaded instead if it is there); returns the
+    seconds taken. ``progress(step, seconds)`` is called after each step."""
+    from h4pin import _jit
+
+    t0 = time.perf_counter()
+    with _jit.compiling():
+        for name, call in steps():
+            t = time.perf_counter()
+            call()
+            if progress is not None:
+                progress(name, time.perf_counter() - t)
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m h4pin.warmup [--lock PATH] [--quiet]``: the background warm-up holds ``--lock``
+    while it compiles, so that no second process compiles the same cache at once."""
+    parser = argparse.ArgumentParser(prog="python -m h4pin.warmup", description=__doc__.splitlines()[0])
+    parser.add_argument("--lock", help="lock file to hold while compiling (background warm-up)")
+    parser.add_argument("--quiet", action="store_true")
+    args = parser.parse_args(argv)
+    from h4pin import _jit
+
+    if args.lock and not _jit.take_lock(args.lock):
+        return 0  # another process compiles this cache now
+    try:
+        def say(name: str, seconds: float) -> None:
+            if not args.quiet:
+                print(f"compiled {name} in {seconds:.1f} s", flush=True)
+
+        total = compile_all(say)
+        if not args.quiet:
+            print(f"h4pin: compiled code cached ({total:.1f} s)", flush=True)
+    finally:
+        if args.lock:
+            _jit.release_lock(args.lock)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,133 @@
+# SPDX-License-Identifier: Apache-2.0
+"""First use without the compiler (h4pin._jit): the interpreted twins equal the compiled
+functions, and a process with an empty numba cache answers at once, on the numpy path and the
+twins, with the warm numbers and without compiling anything."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import h4pin
+from h4pin import _jit
+from h4pin.kinematics import _compiled
+from h4pin.kinematics import pinocchio as kin
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.stiffness import pinocchio as pinocchio_backend
+
+ROOT = Path(__file__).resolve().parent.parent
+VARIANTS = h4pin.VARIANTS
+
+
+def _poses(h4, n=4):
+    c = centre_pose(h4)
+    return [c + np.array([0.03 * np.cos(k), 0.03 * np.sin(k), 0.01 * k, 0.1 * (k - 1)]) for k in range(n)]
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_configuration_twin_equals_compiled(variant):
+    """The twin of the configuration fills the same Pinocchio configuration (and closes the loops)."""
+    h4 = h4pin.load(variant)
+    twin = _jit.interpreted(_compiled.configuration_packed)
+    assert twin is not _compiled.configuration_packed and not hasattr(twin, "signatures")
+    floats, ints = kin._configuration_pack(h4)
+    for x in _poses(h4):
+        st = kin.state(h4, x)
+        args = [np.ascontiguousarray(a, dtype=float) for a in st]
+        compiled = _compiled.configuration_packed(h4.index.q_neutral.copy(), *args, floats, ints)
+        interpreted = twin(h4.index.q_neutral.copy(), *args, floats, ints)
+        assert np.max(np.abs(interpreted - compiled)) < 1e-12
+
+
+@pytest.mark.parametrize("variant", ["prototype", "measured_match"])
+def test_pinocchio_path_twin_equals_compiled(variant):
+    """The twin of the Pinocchio path's compiled pose (which calls the shared core) gives the
+    compiled K, terms, condition, verdict and J."""
+    h4 = h4pin.load(variant)
+    twin = _jit.interpreted(pinocchio_backend._pose)
+    import pinocchio as pin
+
+    F, I = pinocchio_backend._pack(h4)  # noqa: E741
+    d = h4.model.createData()
+    for x in _poses(h4, 3):
+        q = kin.configuration(h4, x)
+        pin.computeJointJacobians(h4.model, d, q)
+        homog = np.array([d.oMi[j].homogeneous for j in h4.index.point_joints])
+        for code in (0, 1):
+            a = pinocchio_backend._pose(d.J, homog, F, I, code, True)
+            b = twin(d.J, homog, F, I, code, True)
+            scale = np.max(np.abs(a[0]))
+            assert np.max(np.abs(a[0] - b[0])) <= 1e-12 * scale
+            assert np.max(np.abs(a[1] - b[1])) <= 1e-12 * scale
+            assert abs(a[2] - b[2]) <= 1e-9 * a[2] and a[3] == b[3]
+            assert np.max(np.abs(a[4] - b[4])) <= 1e-12 * np.max(np.abs(a[4]))
+
+
+COLD = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np, h4pin
+from h4pin.kinematics import _compiled
+from h4pin.stiffness import kernel, pinocchio as pb
+h4 = h4pin.load()
+x = h4pin.kinematics.closed_form.centre_pose(h4)
+xs = x + np.array([[0.02 * k, -0.01 * k, 0.005 * k, 0.05 * k] for k in range(5)])
+one = h4pin.compliance(h4, x)
+batch = h4pin.compliance(h4, xs, "consistent", terms=True)
+pin = h4pin.compliance(h4, x, method="pinocchio")
+bad = h4pin.compliance(h4, np.array([[0, 0, -2.0, 0], x]), on_error="nan")
+compiled = [f.__name__ for f in (_compiled.configuration_packed, kernel._one, kernel._batch, pb._pose) if f.signatures]
+print(json.dumps({"seconds": time.perf_counter() - t0, "one": one.matrix.tolist(), "batch": batch.matrix.tolist(),
+                  "tension": batch.terms["tension"].tolist(), "pin": pin.matrix.tolist(), "q0": h4.q0.tolist(),
+                  "status": bad.status.tolist(), "compiled": compiled}))
+"""
+
+
+def test_empty_cache_answers_without_compiling(tmp_path, proto, centre):
+    """With an empty numba cache (and no background warm-up), loading, one pose, a batch with
+    terms, the Pinocchio path and a refused pose compile nothing and equal the compiled results."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), H4PIN_WARMUP="off", PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", COLD], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout)
+    assert got["compiled"] == []
+    xs = centre + np.array([[0.02 * k, -0.01 * k, 0.005 * k, 0.05 * k] for k in range(5)])
+    ref_one = h4pin.compliance(proto, centre, method="kernel").matrix
+    ref = h4pin.compliance(proto, xs, "consistent", method="kernel", terms=True)
+    ref_pin = h4pin.compliance(proto, centre, method="pinocchio").matrix
+    for key, want in (("one", ref_one), ("batch", ref.matrix), ("tension", ref.terms["tension"]), ("pin", ref_pin)):
+        assert np.max(np.abs(np.array(got[key]) - want)) <= 1e-12 * np.max(np.abs(want)), key
+    assert np.max(np.abs(np.array(got["q0"]) - proto.q0)) < 1e-12
+    assert got["status"] == [1, 0]
+
+
+READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import kernel, pinocchio as pb; "
+         "from h4pin import _jit; print(all(_jit._ready_one(f) for f in "
+         "(_compiled.configuration_packed, kernel._one, kernel._batch, pb._pose)))")
+
+
+@pytest.mark.slow
+def test_background_warmup_fills_the_cache(tmp_path):
+    """A first call with an empty cache starts one warm-up process, which fills the cache: a new
+    process then finds every compiled function there."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), H4PIN_WARMUP="background", PYTHONPATH=str(ROOT))
+
+    def ready() -> bool:
+        out = subprocess.run([sys.executable, "-c", READY], env=env, capture_output=True, text=True, timeout=60,
+                             check=True)
+        return out.stdout.strip() == "True"
+
+    assert not ready()
+    first = "import h4pin, numpy as np; h4pin.compliance(h4pin.load(), np.array([0, 0, -0.5, 0.0]))"
+    subprocess.run([sys.executable, "-c", first], env=env, timeout=60, check=True)
+    deadline = time.monotonic() + 300
+    while not ready():
+        assert time.monotonic() < deadline, "the warm-up did not fill the cache within 300 s"
+        time.sleep(5)
