@@ -23,6 +23,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
+    from h4pin.stiffness.kernel import SERIAL_BELOW
 
     state: dict[str, object] = {}
 
@@ -36,7 +37,8 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     return [("configuration (h4pin.load)", configuration),
             ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
-            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel"))]
+            ("small-batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
+            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (SERIAL_BELOW, 1)), method="kernel"))]
 
 
 def compile_all(progress: Callable[[str, float], None] | None = None) -> float:

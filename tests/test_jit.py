@@ -83,7 +83,8 @@ one = h4pin.compliance(h4, x)
 batch = h4pin.compliance(h4, xs, "consistent", terms=True)
 pin = h4pin.compliance(h4, x, method="pinocchio")
 bad = h4pin.compliance(h4, np.array([[0, 0, -2.0, 0], x]), on_error="nan")
-compiled = [f.__name__ for f in (_compiled.configuration_packed, kernel._one, kernel._batch, pb._pose) if f.signatures]
+compiled = [f.__name__ for f in (_compiled.configuration_packed, kernel._one, kernel._batch, kernel._batch_serial,
+                                 pb._pose) if f.signatures]
 print(json.dumps({"seconds": time.perf_counter() - t0, "one": one.matrix.tolist(), "batch": batch.matrix.tolist(),
                   "tension": batch.terms["tension"].tolist(), "pin": pin.matrix.tolist(), "q0": h4.q0.tolist(),
                   "status": bad.status.tolist(), "compiled": compiled}))
@@ -110,7 +111,7 @@ def test_empty_cache_answers_without_compiling(tmp_path, proto, centre):
 
 READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import kernel, pinocchio as pb; "
          "from h4pin import _jit; print(all(_jit._ready_one(f) for f in "
-         "(_compiled.configuration_packed, kernel._one, kernel._batch, pb._pose)))")
+         "(_compiled.configuration_packed, kernel._one, kernel._batch, kernel._batch_serial, pb._pose)))")
 
 
 @pytest.mark.slow

@@ -238,12 +238,17 @@ def test_typed_errors(proto):
 
 
 def test_compiled_code_is_cached(proto, centre):
-    """A fresh interpreter loads the compiled batch kernel from numba's cache (no recompile)."""
+    """A fresh interpreter loads the compiled batch kernels (threaded and serial) from numba's
+    cache (no recompile)."""
+    big = np.tile(centre, (kernel.SERIAL_BELOW, 1))
     kernel.compliance_batch(proto.geometry, centre)  # compiles here if no cache yet, and writes it
-    code = ("import numpy as np, h4pin; from h4pin.stiffness import kernel;"
-            "kernel.compliance_batch(h4pin.load().geometry, np.array([0, 0, -0.6, 0.0]));"
-            "s = kernel._batch.stats; print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))")
+    kernel.compliance_batch(proto.geometry, big)
+    code = ("import numpy as np, h4pin; from h4pin.stiffness import kernel; g = h4pin.load().geometry;"
+            "kernel.compliance_batch(g, np.array([0, 0, -0.6, 0.0]));"
+            "kernel.compliance_batch(g, np.tile([0, 0, -0.6, 0.0], (kernel.SERIAL_BELOW, 1)));"
+            "s = [f.stats for f in (kernel._batch, kernel._batch_serial)];"
+            "print(*[sum(t.cache_hits.values()) for t in s], *[sum(t.cache_misses.values()) for t in s])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
-    hits, misses = map(int, out.stdout.split())
-    assert hits >= 1 and misses == 0
+    hits_threaded, hits_serial, *misses = map(int, out.stdout.split())
+    assert hits_threaded >= 1 and hits_serial >= 1 and misses == [0, 0]

@@ -124,6 +124,14 @@ class Compliance:
     valid: np.ndarray | None = None
     elements: Elements | None = None
 
+    @classmethod
+    def _of(cls, *values: Any) -> Compliance:
+        """The result of the one-pose fast path, made without the dataclass' field-by-field
+        ``__init__`` (the same fields, in order)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(zip(_FIELDS, values, strict=True))
+        return obj
+
     @property
     def translational(self) -> np.ndarray:
         """The 3x3 block dD = K_tt F, in m/N (Table II of the paper, in um/N, is 1e6 times it)."""
@@ -168,6 +176,9 @@ class Compliance:
         tp = transform(offset)
         tq = tp if load_at is None else transform(load_at)
         return tp @ self.matrix[..., :6, :6] @ np.swapaxes(tq, -1, -2)
+
+
+_FIELDS = tuple(f.name for f in dataclasses.fields(Compliance))
 
 
 def as_load(load: Any) -> np.ndarray:
@@ -248,37 +259,44 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
     """
     _check_options(model, on_error, method)
     active = _elements_of(h4, elements)
-    if (not terms and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,)
-            and pose.dtype == np.float64 and math.isfinite(pose.sum())):
+    if (on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype == np.float64
+            and math.isfinite(sum(pose.tolist()))):
         # One regular pose: straight to its backend (a bad pose goes the long way for its error).
         x = pose.copy()
         x.setflags(write=False)
-        K, q, cond, status = _one_pose(h4, x, model, method)
-        if status == OK:
-            if active is not None:
-                K = K + sum(element_model.element_terms(h4.geometry, x, active).values())
-            return Compliance(K, _lazy_terms(h4, x, model, method, active), x, q, model, cond, 0, None, active)
+        K, q, cond, status, T = _one_pose(h4, x, model, method, bool(terms))
+        if status == OK and (T is not None or not terms):
+            extra = None if active is None else element_model.element_terms(h4.geometry, x, active)
+            if extra:
+                K = K + sum(extra.values())
+            if T is None:
+                parts: Mapping[str, np.ndarray] = _lazy_terms(h4, x, model, method, active)
+            else:
+                parts = dict(zip(TERMS, T, strict=True))
+                parts.update(extra or {})
+            return Compliance._of(K, parts, x, q, model, cond, 0, None, active)
     res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
     if terms:
         return res
     return dataclasses.replace(res, terms=_lazy_terms(h4, res.pose, model, method, active))
 
 
-def _one_pose(h4, x: np.ndarray, model: str, method: str) -> tuple[Any, Any, float, int]:
-    """K, q, condition and status of one finite pose on ``method``'s backend, with the compiled
+def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[Any, Any, float, int, Any]:
+    """K, q, condition, status and the terms (4, 8, 8) (None when not asked for, or when this
+    path does not give them) of one finite pose on ``method``'s backend, with the compiled
     one-pose calls where they apply (no batch set-up); status -1 when the closed form refuses
     the pose before Pinocchio runs (the long way then names the reason)."""
     code = MODELS.index(model)
     if method == "auto" and h4.geometry.ideal and kernel.ONE.ready:
-        K, q, cond, status = kernel.one(kernel.for_geometry(h4.geometry), x, code)
-        return K, q, float(cond), int(status)
-    if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready:
+        K, q, cond, status, T = kernel.one(kernel.for_geometry(h4.geometry), x, code, terms)
+        return K, q, float(cond), int(status), T if terms else None
+    if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready and not terms:
         from h4pin.stiffness import pinocchio as pinocchio_backend
 
         got = pinocchio_backend.one(h4, x, code)
-        return got if got is not None else (None, None, np.nan, -1)
-    r = _backend(h4, method)(h4, x[None], model, False)
-    return r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0])
+        return (*got, None) if got is not None else (None, None, np.nan, -1, None)
+    r = _backend(h4, method)(h4, x[None], model, terms)
+    return r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0]), None if r.terms is None else r.terms[0]
 
 
 def _lazy_terms(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> LazyTerms:
@@ -301,19 +319,32 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
     xb = x[None] if single else x
     n = len(xb)
     names = TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
-    matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
-    cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
-    out_terms = {t: np.full((n, 8, 8), np.nan) for t in names} if keep else None
     backend = _backend(h4, method)
     idx_all = np.flatnonzero(finite)
-    for start in range(0, len(idx_all), _BATCH_CHUNK):
-        idx = idx_all[start:start + _BATCH_CHUNK]
-        r = backend(h4, np.ascontiguousarray(xb[idx]), model, keep)
-        matrix[idx], q[idx], cond[idx], status[idx] = r.matrix, r.q, r.condition, r.status
+    if len(idx_all) == n and (backend is kernel.backend or n <= _BATCH_CHUNK):
+        # Every pose finite, one call: the backend's arrays are the result's (no copy; the kernel
+        # is never cut in chunks: its memory is its output's).
+        r = backend(h4, np.ascontiguousarray(xb), model, keep)
+        matrix, q, cond, status = r.matrix, r.q, r.condition, r.status.astype(np.int8, copy=False)
+        out_terms = {name: r.terms[:, t] for t, name in enumerate(TERMS)} if keep else None
+        chunks: list[tuple[np.ndarray, Raw]] = [(idx_all, r)]
+    else:
+        matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
+        cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
+        out_terms = {t: np.full((n, 8, 8), np.nan) for t in TERMS} if keep else None
+        chunks = []
+        for start in range(0, len(idx_all), _BATCH_CHUNK):
+            idx = idx_all[start:start + _BATCH_CHUNK]
+            r = backend(h4, np.ascontiguousarray(xb[idx]), model, keep)
+            matrix[idx], q[idx], cond[idx], status[idx] = r.matrix, r.q, r.condition, r.status
+            if keep:
+                for t, name in enumerate(TERMS):
+                    out_terms[name][idx] = r.terms[:, t]
+            chunks.append((idx, r))
+    if active is not None:
         if keep:
-            for t, name in enumerate(TERMS):
-                out_terms[name][idx] = r.terms[:, t]
-        if active is not None:
+            out_terms.update({t: np.full((n, 8, 8), np.nan) for t in names[len(TERMS):]})
+        for idx, r in chunks:
             for k in idx[r.status == OK]:
                 extra = element_model.element_terms(h4.geometry, xb[k], active)
                 matrix[k] += sum(extra.values())

@@ -225,6 +225,17 @@ def finish(M, W, lw, A, P, g, c_ctrl, c_bend, c_tors, c_tens, model, status, K, 
 @njit(cache=True, nogil=True)
 def scratch():
     """Scratch arrays of one thread: A, B, W (8, 3), lw (8,), M, Y (8, 8), Gc (8, 4), ws (5, 8),
-    g, d, e (8,)."""
-    return (np.empty((8, 3)), np.empty((8, 3)), np.empty((8, 3)), np.empty(8), np.empty((8, 8)), np.empty((8, 8)),
-            np.empty((8, 4)), np.empty((5, 8)), np.empty(8), np.empty(8), np.empty(8))
+    g, d, e (8,) (:func:`scratch_in` of one new buffer)."""
+    return scratch_in(np.empty(SCRATCH))
+
+
+#: Size of the buffer :func:`scratch_in` cuts into the scratch arrays (float64).
+SCRATCH = 304
+
+
+@njit(cache=True, nogil=True, inline="always")
+def scratch_in(b):
+    """The scratch arrays of :func:`scratch` as views of ``b`` (:data:`SCRATCH`,): one allocation."""
+    return (b[0:24].reshape(8, 3), b[24:48].reshape(8, 3), b[48:72].reshape(8, 3), b[72:80],
+            b[80:144].reshape(8, 8), b[144:208].reshape(8, 8), b[208:240].reshape(8, 4), b[240:280].reshape(5, 8),
+            b[280:288], b[288:296], b[296:304])

@@ -156,7 +156,7 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        return _one(x, self.packed, 1 if model == "consistent" else _model_code(model))
+        return _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False)[:4]
 
 
 def prepare(g: H4Geometry | Kernel | Any) -> Kernel:
@@ -300,16 +300,33 @@ def _views(G):
 
 
 @njit(cache=True, nogil=True)
-def _one(x, G, model):
+def _one(x, G, model, want_terms):
+    """One pose with two allocations besides the outputs: K, q, condition, status and the terms
+    T (4, 8, 8) (uninitialised unless ``want_terms``)."""
+    n = core.SCRATCH + 16
+    buf = np.empty(n if want_terms else n + 256)
     K = np.empty((8, 8))
     q = np.empty(4)
-    T = np.empty((1, 4, 8, 8))
-    J = np.empty((1, 4, 4))
-    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+    T = np.empty((4, 8, 8)) if want_terms else buf[n:n + 256].reshape(4, 8, 8)
+    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch_in(buf)
+    J = buf[core.SCRATCH:n].reshape(4, 4)
     P, C = _views(G)
-    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, K, q, T[0], False, J[0], False, A, B, W, lw, M, Y,
+    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, K, q, T, want_terms, J, False, A, B, W, lw, M, Y,
                          Gc, ws, g, d, e)
-    return K, q, cond, status
+    return K, q, cond, status, T
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _block(poses, lo, hi, G, P, C, model, K, q, cond, status, T, want_terms, J, want_jac):
+    """Poses lo..hi-1 with one set of scratch arrays."""
+    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+    for p in range(lo, hi):
+        tp = T[p] if want_terms else T[0]
+        jp = J[p] if want_jac else J[0]
+        c, s = _pose(poses[p, 0], poses[p, 1], poses[p, 2], poses[p, 3], G, P, C, model, K[p], q[p], tp,
+                     want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e)
+        cond[p] = c
+        status[p] = s
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -318,20 +335,25 @@ def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, bloc
     nblocks = (n + block - 1) // block
     P, C = _views(G)
     for bi in prange(nblocks):
-        A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
-        for p in range(bi * block, min(n, (bi + 1) * block)):
-            tp = T[p] if want_terms else T[0]
-            jp = J[p] if want_jac else J[0]
-            c, s = _pose(poses[p, 0], poses[p, 1], poses[p, 2], poses[p, 3], G, P, C, model, K[p], q[p], tp,
-                         want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e)
-            cond[p] = c
-            status[p] = s
+        _block(poses, bi * block, min(n, (bi + 1) * block), G, P, C, model, K, q, cond, status, T, want_terms, J,
+               want_jac)
 
 
-#: Whether the one-pose and the batch kernel are compiled (:mod:`h4pin._jit`): until then
+@njit(cache=True, nogil=True)
+def _batch_serial(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
+    """:func:`_batch` without threads, for small batches (no thread start-up, no wake-up latency)."""
+    P, C = _views(G)
+    _block(poses, 0, poses.shape[0], G, P, C, model, K, q, cond, status, T, want_terms, J, want_jac)
+
+
+#: Batches smaller than this run serially (:func:`_batch_serial`): waking the thread pool costs
+#: about as much as a few hundred poses (``scripts/bench.py``, small-batch rows).
+SERIAL_BELOW = 2 * _BLOCK
+
+#: Whether the one-pose and the batch kernels are compiled (:mod:`h4pin._jit`): until then
 #: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call.
 ONE = _jit.Gate("one-pose kernel", _one)
-BATCH = _jit.Gate("batch kernel", _batch)
+BATCH = _jit.Gate("batch kernel", _batch, _batch_serial)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -398,14 +420,16 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     T = res.terms if terms else np.empty((1, 4, 8, 8))
     J = res.J if jacobian else np.empty((1, 4, 4))
     if n:
-        _batch(x, kern.packed, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian, _BLOCK)
+        run = _batch if n >= SERIAL_BELOW else _batch_serial
+        run(x, kern.packed, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian, _BLOCK)
     return res
 
 
-def one(kern: Kernel, x: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray, float, int]:
+def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
     """:meth:`Kernel.__call__` without its checks, for a caller that has checked them: ``x`` a
-    finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent)."""
-    return _one(x, kern.packed, code)
+    finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent). Returns K, q, condition,
+    status and the terms (4, 8, 8) (meaningless unless ``terms``)."""
+    return _one(x, kern.packed, code, terms)
 
 
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:

@@ -155,7 +155,7 @@ def one(h4, x: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray, float, in
     (the caller then takes the long way, which names the reason)."""
     from h4pin.stiffness import kernel
 
-    _, q, _, status = kernel.one(kernel.for_geometry(h4.geometry), x, code)
+    _, q, _, status, _ = kernel.one(kernel.for_geometry(h4.geometry), x, code)
     if status not in (OK, SINGULAR):
         return None
     K, _, cond, status, _ = _at_state(h4, _rigid_states(x[None], q[None])[0], code, False, h4.data)
