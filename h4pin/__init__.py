@@ -16,6 +16,7 @@ from h4pin import _compat  # noqa: E402, F401  (gives Pinocchio 3.x a RigidConst
 from h4pin.description.elements import Elements  # noqa: E402
 from h4pin.description.geometry import H4Geometry  # noqa: E402
 from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params  # noqa: E402
+from h4pin.elastic import ElasticH4, elastic_model  # noqa: E402
 from h4pin.errors import (  # noqa: E402
     ConvergenceError,
     H4Error,
@@ -35,16 +36,20 @@ from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
 
 __version__ = "0.1.0"
 
-# example_robot_data.load("h4") when example-robot-data-loaders is installed (no download).
+# Import-time registration (documented in docs/descriptions.md, tested in tests/test_erd.py): with
+# example-robot-data-loaders installed, example_robot_data.load("h4") works after `import h4pin`;
+# the names are h4pin.io.erd.NAMES. Without the loaders nothing happens (and nothing is imported).
 from h4pin.io import erd as _erd  # noqa: E402
 
-_erd.register()
+if _erd.available():
+    _erd.register()
 
 __all__ = [
     "H4",
     "VARIANTS",
     "Compliance",
     "ConvergenceError",
+    "ElasticH4",
     "Elements",
     "H4Error",
     "H4Geometry",
@@ -60,6 +65,7 @@ __all__ = [
     "URDFNotFoundError",
     "UnreachablePoseError",
     "compliance",
+    "elastic_model",
     "load",
     "symmetric_params",
     "toleranced_params",

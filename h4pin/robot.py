@@ -12,14 +12,23 @@ Velocity split: the 4 actuated joints ``v_act`` and the 24 passive ones ``v_pas`
 revolutes, 6 plate free-flyer, 2 lateral revolutes). The 24 closure equations
 ``Jc_a v_a + Jc_p v_p = 0`` have a square 24x24 passive block away from singularities, so the
 passive velocities follow from the actuated ones: ``v_p = -Jc_p^-1 Jc_a v_a``.
+
+Collisions: :attr:`H4.collision_model` holds every pair of collision geometries except those of
+:func:`disabled_collisions` (links joined by a joint, and links that always touch at a joint
+centre), the same pairs as example-robot-data's loader gives from the shipped SRDF. It is built on
+first use. :meth:`H4.point_constraints` gives the closures as Pinocchio 4's bilateral point
+constraints (``pin.PointAnchorConstraintModel``); :attr:`H4.constraint_models` keeps the legacy
+``RigidConstraintModel`` on every supported Pinocchio.
 """
 
 from __future__ import annotations
 
 import threading
+import xml.etree.ElementTree as ET
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import pinocchio as pin
@@ -28,8 +37,8 @@ from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.geometry import BAR_CLEARANCE, params_from_geometry
 from h4pin.description.params import VARIANTS, H4Params
 from h4pin.description.reader import read
-from h4pin.description.urdf import decode, to_urdf
-from h4pin.errors import H4Error, ParameterError, URDFNotFoundError
+from h4pin.description.urdf import decode, parse, to_urdf
+from h4pin.errors import H4Error, MalformedURDFError, ParameterError, URDFNotFoundError
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
@@ -46,6 +55,78 @@ def urdf_dir() -> Path:
 def variant_path(name: str) -> Path:
     """Path of the shipped URDF of variant ``name`` (``urdf/h4_<name>.urdf``)."""
     return urdf_dir() / f"h4_{name}.urdf"
+
+
+class DisabledCollision(NamedTuple):
+    """A pair of links whose collision geometries are never checked against each other, with the
+    SRDF's reason (``<disable_collisions link1 link2 reason>``, MoveIt's vocabulary)."""
+
+    link1: str
+    link2: str
+    reason: str
+
+
+def disabled_collisions(urdf_text: str, source: str = "URDF") -> tuple[DisabledCollision, ...]:
+    """The link pairs of an H4 URDF whose collisions are not checked, in file order.
+
+    * ``"Adjacent"``: links joined by a URDF joint (not a floating one: the plate is not joined to
+      the base), looking through links without collision geometry (frames such as ``A_11``), as
+      MoveIt's setup assistant does;
+    * ``"Always"``: links that touch at a joint centre in every configuration: the two ends of a
+      universal joint (two revolutes through one point, the child joint at the origin of the link
+      between them: forearm_i and bar_ij around the cross ``bar_ij_cross``), and the two links of
+      each closure (``<constraint>``, the ball joint of bar ij on its lateral bar).
+
+    This is what :func:`h4pin.io.erd.srdf` writes into the shipped SRDFs; every other pair of
+    geometries is checked. ``tests/test_erd.py`` checks that every disabled pair of the shipped
+    variants touches and that no checked pair does, at ``q0`` and at sampled poses.
+
+    Raises:
+        MalformedURDFError: the text is not XML.
+    """
+    try:
+        root = ET.fromstring(urdf_text)
+    except ET.ParseError as exc:
+        raise MalformedURDFError(f"{source}: not well-formed XML ({exc})") from None
+    links = [link.get("name", "") for link in root.findall("link")]
+    solid = {link.get("name") for link in root.findall("link") if link.find("collision") is not None}
+    up: dict[str, tuple[str, ET.Element]] = {}  # child link -> (parent link, joint)
+    for joint in root.findall("joint"):
+        parent, child = joint.find("parent"), joint.find("child")
+        if joint.get("type") != "floating" and parent is not None and child is not None:
+            up[child.get("link", "")] = (parent.get("link", ""), joint)
+
+    def solid_parent(link: str) -> str | None:
+        while link in up:
+            link = up[link][0]
+            if link in solid:
+                return link
+        return None
+
+    out: dict[frozenset[str], DisabledCollision] = {}
+
+    def add(a: str | None, b: str, reason: str) -> None:
+        if a is not None and a != b and frozenset((a, b)) not in out:
+            out[frozenset((a, b))] = DisabledCollision(a, b, reason)
+
+    for link in (name for name in links if name in solid):
+        add(solid_parent(link), link, "Adjacent")
+    for link in (name for name in links if name in solid):
+        parent, joint = up.get(link, ("", None))
+        origin = joint.find("origin") if joint is not None else None
+        at_origin = origin is None or all(float(v) == 0 for v in origin.get("xyz", "0 0 0").split())
+        if joint is not None and joint.get("type") != "fixed" and parent in solid and at_origin:
+            add(solid_parent(parent), link, "Always")
+    for closure in parse(urdf_text, source).closures:
+        if closure.parent in solid and closure.child in solid:
+            add(closure.parent, closure.child, "Always")
+    return tuple(out.values())
+
+
+def disable_collisions_xml(pairs: tuple[DisabledCollision, ...], indent: str = "  ") -> list[str]:
+    """The SRDF lines ``<disable_collisions link1=... link2=... reason=.../>`` of ``pairs``."""
+    return [f"{indent}<disable_collisions link1={quoteattr(p.link1)} link2={quoteattr(p.link2)} "
+            f"reason={quoteattr(p.reason)}/>" for p in pairs]
 
 
 def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any] | None = None,
@@ -109,7 +190,10 @@ class H4:
             URDF, or ``load(..., elements=...)``); :func:`h4pin.compliance` includes them.
         model: the Pinocchio model (shared; never changed by h4pin).
         data: the calling thread's own ``pin.Data`` of :attr:`model` (each thread gets one).
-        visual_model, collision_model: Pinocchio geometry models.
+        visual_model: Pinocchio's visual geometry model.
+        collision_model: Pinocchio's collision geometry model with its collision pairs: all pairs
+            minus :attr:`disabled_collisions` (made on first use; shared, do not change it).
+        disabled_collisions: the link pairs not checked (:func:`disabled_collisions`).
         constraint_models: the 8 ``CONTACT_3D`` closures, bar ij at B_ij, in the order 11, 12,
             21, ..., 42 (index n = 2(i-1) + (j-1)); joint 1 is the bar's.
         frames: Frame ids by name.
@@ -127,7 +211,9 @@ class H4:
         desc = read(urdf_text, source, springs, bar_clearance)
         if elements is not None:
             desc = desc._replace(elements=_as_elements(elements))
-        values = dict(desc._asdict(), urdf=urdf_text, source=source, _local=threading.local())
+        values = dict(desc._asdict(), urdf=urdf_text, source=source, _local=threading.local(),
+                      _lazy={}, _lazy_lock=threading.RLock())
+        values["_collision_geometry"] = values.pop("collision_model")  # pairs added on first use
         for name, value in values.items():
             object.__setattr__(self, name, value)
         object.__setattr__(self, "q0", self._reference_configuration())
@@ -169,6 +255,61 @@ class H4:
         return d
 
     @property
+    def disabled_collisions(self) -> tuple[DisabledCollision, ...]:
+        """The link pairs whose collisions are not checked (:func:`disabled_collisions` of the URDF)."""
+        return self._cached("disabled_collisions", lambda: disabled_collisions(self.urdf, self.source))
+
+    @property
+    def collision_model(self) -> pin.GeometryModel:
+        """Pinocchio's collision model with its pairs: every pair of geometries of different joints
+        (``addAllCollisionPairs``) minus those of :attr:`disabled_collisions`
+        (``removeCollisionPairsFromXML``), as example-robot-data's loader does with the SRDF.
+        Made on first use (about 2 ms) and shared: make a ``createData()`` per thread."""
+
+        def build() -> pin.GeometryModel:
+            geometry = self._collision_geometry
+            geometry.addAllCollisionPairs()
+            srdf = "\n".join(['<robot name="h4">', *disable_collisions_xml(self.disabled_collisions), "</robot>"])
+            pin.removeCollisionPairsFromXML(self.model, geometry, srdf, False)
+            return geometry
+
+        return self._cached("collision_model", build)
+
+    def _cached(self, key: str, make: Any) -> Any:
+        """``make()`` once per robot (thread-safe), shared by every thread."""
+        value = self._lazy.get(key)
+        if value is None:
+            with self._lazy_lock:
+                value = self._lazy.get(key)
+                if value is None:
+                    value = self._lazy[key] = make()
+        return value
+
+    def point_constraints(self) -> Any:
+        """The 8 closures as Pinocchio 4's bilateral point constraints: a new
+        ``pin.StdVec_ConstraintModel`` of ``pin.PointAnchorConstraintModel`` (same joints, placements
+        and names as :attr:`constraint_models`, same order), for Pinocchio 4's constraint algorithms
+        (``getConstraintsJacobian``, the ADMM and PGS solvers). Their Jacobian is the negative of
+        the legacy ``CONTACT_3D`` one (the residual is measured from the other end), so their forces
+        are the negatives of the legacy ones; ``J^T lambda`` is the same.
+
+        Raises:
+            H4Error: Pinocchio 3.x, which has no point constraints (use :attr:`constraint_models`).
+        """
+        anchor = getattr(pin, "PointAnchorConstraintModel", None)
+        if anchor is None or not hasattr(pin, "StdVec_ConstraintModel"):
+            raise H4Error(f"point constraints need Pinocchio >= 4 (pin.PointAnchorConstraintModel); this is "
+                          f"Pinocchio {pin.__version__}: use H4.constraint_models (RigidConstraintModel)")
+        out = pin.StdVec_ConstraintModel()
+        for cm in self.constraint_models:
+            point = anchor(self.model, cm.joint1_id, cm.joint1_placement, cm.joint2_id, cm.joint2_placement)
+            point.name = cm.name
+            generic = pin.ConstraintModel(point)
+            generic.name = cm.name  # the generic wrapper keeps its own name
+            out.append(generic)
+        return out
+
+    @property
     def params(self) -> H4Params:
         """The nominal :class:`H4Params` of this robot, if its layout is one they describe.
 
@@ -182,7 +323,7 @@ class H4:
         for name, value in vars(self).items():
             object.__setattr__(out, name, value)
         object.__setattr__(out, "elements", _as_elements(elements))
-        object.__setattr__(out, "_local", threading.local())
+        object.__setattr__(out, "_local", threading.local())  # the lazy collision model stays shared
         return out
 
     # Shorthands of the free functions (each documented there).
@@ -245,4 +386,5 @@ class H4:
                 f"closures={len(self.constraint_models)})")
 
 
-__all__ = ["H4", "load", "urdf_dir", "variant_path"]
+__all__ = ["H4", "DisabledCollision", "disable_collisions_xml", "disabled_collisions", "load", "urdf_dir",
+           "variant_path"]

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The H4 in Gepetto's toolbox-parallel-robots (Extended URDF) and in example-robot-data.
+"""The H4 in Gepetto's toolbox-parallel-robots (Extended URDF). example-robot-data and
+robot_descriptions: ``tests/test_erd.py``.
 
-Against the real packages (``interop`` and ``erd`` extras; skipped without them, CI installs them).
+Against the real packages (``interop`` extra; skipped without it, CI installs it).
 """
 
 from __future__ import annotations
@@ -10,7 +11,6 @@ import importlib
 import importlib.util
 import sys
 import types
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -206,48 +206,3 @@ def test_actuated_joint_names_are_the_actuators(proto):
     names = proto.actuated_joint_names
     assert names == ("actuator_1", "actuator_2", "actuator_3", "actuator_4")
     assert [proto.model.joints[proto.model.getJointId(n)].idx_v for n in names] == list(proto.v_act)
-
-
-# ----------------------------------------------------------------- example-robot-data
-def test_example_robot_data_loads_the_h4():
-    erd = pytest.importorskip("example_robot_data")
-    from h4pin.io import erd as h4_erd
-
-    assert {"h4", "h4_prototype", "h4_symmetric"} <= set(erd.ROBOTS)
-    for name, variant in (("h4", "prototype"), ("h4_symmetric", "symmetric")):
-        robot, q0, urdf, srdf = erd.load_full(name)
-        assert isinstance(robot, pin.RobotWrapper)
-        h4 = h4pin.load(variant)
-        assert Path(urdf).read_text() == h4.urdf
-        assert Path(srdf).parent.name == "srdf" and Path(urdf).parent.name == "urdf"
-        # q0 from the SRDF: the configuration of the reference pose, to the 1e-12 the SRDF keeps,
-        # within a micrometre of the centre (all actuators at 45 deg).
-        np.testing.assert_allclose(q0, h4.configuration(h4_erd.reference_pose(h4)), rtol=0, atol=1e-11)
-        np.testing.assert_allclose(h4_erd.reference_pose(h4), centre_pose(h4), rtol=0, atol=5e-7)
-        # The closures come with it and close at q0, on the wrapper's own model and data.
-        assert len(robot.constraint_models) == 8
-        pin.forwardKinematics(robot.model, robot.data, q0)
-        gaps = []
-        for cm, cd in zip(robot.constraint_models, robot.constraint_datas, strict=True):
-            cm.calc(robot.model, robot.data, cd)
-            gaps.append(np.linalg.norm(cd.c1Mc2.translation))
-        assert max(gaps) < 1e-11
-        # And they are the closures: moving one actuator alone opens them.
-        q = q0.copy()
-        q[robot.model.joints[robot.model.getJointId("actuator_1")].idx_q] += 0.01
-        pin.forwardKinematics(robot.model, robot.data, q)
-        robot.constraint_models[0].calc(robot.model, robot.data, robot.constraint_datas[0])
-        assert np.linalg.norm(robot.constraint_datas[0].c1Mc2.translation) > 1e-4
-
-
-def test_wheel_installs_example_robot_data_layout(tmp_path):
-    """The wheel carries urdf/ and srdf/ under share/example-robot-data/robots/h4_description."""
-    wheel_builder = pytest.importorskip("hatchling.builders.wheel")
-    builder = wheel_builder.WheelBuilder(str(ROOT))
-    wheel = Path(next(iter(builder.build(directory=str(tmp_path), versions=["standard"]))))
-    names = zipfile.ZipFile(wheel).namelist()
-    data = [n.split(".data/data/", 1)[1] for n in names if ".data/data/" in n]
-    for variant in VARIANTS:
-        for sub, ext in (("urdf", "urdf"), ("urdf", "yaml"), ("srdf", "srdf")):
-            assert f"share/example-robot-data/robots/h4_description/{sub}/h4_{variant}.{ext}" in data
-            assert f"h4pin/{sub}/h4_{variant}.{ext}" in names

@@ -153,3 +153,172 @@ def test_q0_is_the_assembled_reference_configuration(variant):
     model = pin.buildModelFromUrdf(str(urdf_dir() / f"h4_{variant}.urdf"))
     pin.loadReferenceConfigurations(model, str(urdf_dir().parent / "srdf" / f"h4_{variant}.srdf"))
     np.testing.assert_allclose(model.referenceConfigurations["q0"], h4.q0, atol=1e-5)
+
+
+# ----------------------------------------------------------------- Pinocchio 4 point constraints
+def _needs_point_constraints():
+    if not hasattr(pin, "PointAnchorConstraintModel"):
+        pytest.skip(f"Pinocchio {pin.__version__} has no point constraints (Pinocchio >= 4); "
+                    "h4pin keeps the legacy RigidConstraintModel there")
+
+
+def _selection(h4) -> np.ndarray:
+    """(nv, 4): the actuators' columns of the identity (tau_full = S tau_act)."""
+    s = np.zeros((h4.model.nv, 4))
+    s[h4.v_act, np.arange(4)] = 1.0
+    return s
+
+
+def _jacobian(h4, models, q, data, vector=None, datas=None):
+    """The stacked constraint Jacobian of ``models`` at q, by Pinocchio (its own getConstraintsJacobian)."""
+    vector = vector or pin.StdVec_ConstraintData
+    datas = datas if datas is not None else vector()
+    if not len(datas):
+        for cm in models:
+            datas.append(cm.createData())
+    pin.computeJointJacobians(h4.model, data, q)
+    for cm, cd in zip(models, datas, strict=True):
+        cm.calc(h4.model, data, cd)
+    if isinstance(models, pin.StdVec_PointContactConstraintModel):  # not taken by getConstraintsJacobian
+        return np.vstack([cm.jacobian(h4.model, data, cd) for cm, cd in zip(models, datas, strict=True)]), datas
+    return pin.getConstraintsJacobian(h4.model, data, models, datas), datas
+
+
+def test_point_constraints_are_the_closures(proto, poses):
+    """Pinocchio 4's PointAnchorConstraintModel of each closure: same joints, placements and names as
+    the legacy CONTACT_3D models, closed at q0 (its own position error), Jacobian = -legacy one."""
+    _needs_point_constraints()
+    points = proto.point_constraints()
+    assert len(points) == 8 and all(p.shortname() == "PointAnchorConstraintModel" for p in points)
+    assert [p.name for p in points] == [cm.name for cm in proto.constraint_models]
+    data = proto.model.createData()
+    pin.forwardKinematics(proto.model, data, proto.q0)
+    for p, cm in zip(points, proto.constraint_models, strict=True):
+        anchor = p.extract()
+        assert (anchor.joint1_id, anchor.joint2_id) == (cm.joint1_id, cm.joint2_id)
+        cd = anchor.createData()
+        anchor.calc(proto.model, data, cd)
+        assert np.linalg.norm(cd.constraint_position_error) < 1e-12
+    for x in poses[:4]:
+        q = proto.configuration(x)
+        j_point, _ = _jacobian(proto, points, q, data)
+        j_legacy, _ = _jacobian(proto, proto.constraint_models, q, data, pin.StdVec_RigidConstraintData)
+        assert np.abs(j_legacy).max() > 0.1
+        np.testing.assert_allclose(j_point, -j_legacy, rtol=0, atol=1e-14)
+
+
+def test_point_constraints_balance_the_legacy_forward_dynamics(proto, poses):
+    """Moving robot: Pinocchio's legacy constrained forward dynamics (RigidConstraintModel) gives the
+    accelerations a and closure forces of some actuator torques at a velocity that keeps the loops
+    closed; the inverse dynamics with the point constraints, rnea(q, v, a) = S tau + Jp^T lambda
+    (a square solve), gives back those torques and the same J^T lambda."""
+    _needs_point_constraints()
+    from h4pin import _compat
+
+    m, data = proto.model, proto.model.createData()
+    points, s = proto.point_constraints(), _selection(proto)
+    rng = np.random.default_rng(5)
+    for x in poses[:3]:
+        q = proto.configuration(x)
+        v = proto.passive_map(q, data) @ rng.uniform(-1, 1, 4)
+        tau = rng.uniform(-5, 5, 4)
+        datas = pin.StdVec_RigidConstraintData()
+        for cm in proto.constraint_models:
+            datas.append(cm.createData())
+        _compat.init_constraint_dynamics(m, data, proto.constraint_models, datas)
+        a = pin.constraintDynamics(m, data, q, v, s @ tau, proto.constraint_models, datas).copy()
+        lam_legacy = data.lambda_c.copy()
+        j_legacy, _ = _jacobian(proto, proto.constraint_models, q, data, pin.StdVec_RigidConstraintData)
+        j_point, _ = _jacobian(proto, points, q, data)
+        assert np.abs(j_point @ v).max() < 1e-12  # the loops stay closed
+        rhs = pin.rnea(m, data, q, v, a)
+        sol = np.linalg.solve(np.hstack([s, j_point.T]), rhs)
+        np.testing.assert_allclose(sol[:4], tau, rtol=0, atol=1e-9 * np.abs(rhs).max())
+        np.testing.assert_allclose(j_point.T @ sol[4:], j_legacy.T @ lam_legacy, rtol=0,
+                                   atol=1e-9 * np.abs(rhs).max())
+
+
+def test_compute_inverse_dynamics_constraint_forces_holds_the_robot(proto, poses):
+    """Pinocchio 4's computeInverseDynamicsConstraintForces on the closures, at rest under gravity.
+
+    It takes unilateral point contacts with Coulomb friction (PointContactConstraintModel) and
+    compliance R, and returns the forces lambda in the friction cone with c_ref + R lambda = 0 (for
+    forces inside the cone): a compliant-contact law, not the closed-loop dynamics. So each closure
+    is given as a contact whose normal lies along its bar (the way the bar pushes or pulls at this
+    pose; a bar nearly unloaded along its axis still carries part of its weight across it, hence
+    a friction coefficient of 1e3) and c_ref = -R lambda*, lambda* the closure forces of the rigid
+    robot held by its motors (from rnea = S tau + Jc^T lambda). The forces it returns must make the
+    inverse dynamics balance: tau = rnea - Jc^T lambda is zero on every passive joint and equals h4.gravity_torques (the
+    closed-loop velocity map, an independent route) on the actuators. It is solved as the convex
+    problem (solve_ncp=False): the NCP's De Saxce correction would read the tangential part of c_ref
+    as sliding (and does not converge with this friction coefficient).
+
+    pin 4.1.0's Python binding of computeInverseDynamicsConstraintForces cannot be called (its
+    argument checker reads the first argument as a Model: TypeError); pin.contactInverseDynamics,
+    which calls it and then computes rnea - Jc^T lambda, is used then.
+    """
+    _needs_point_constraints()
+    if not hasattr(pin, "PointContactConstraintModel"):
+        pytest.skip("this Pinocchio has no PointContactConstraintModel")
+    m, data = proto.model, proto.model.createData()
+    s, zero = _selection(proto), np.zeros(proto.model.nv)
+    compliance, dt, friction = 1e-6, 1e-3, 1e3
+    for x in poses[:3]:
+        q = proto.configuration(x)
+        up = pin.StdVec_PointContactConstraintModel()
+        for cm in proto.constraint_models:  # contact z along the bar (z of the bar end's frame)
+            up.append(pin.PointContactConstraintModel(m, cm.joint1_id, cm.joint1_placement, cm.joint2_id,
+                                                      cm.joint2_placement))
+        j_up, _ = _jacobian(proto, up, q, data, pin.StdVec_PointContactConstraintData)
+        g = pin.rnea(m, data, q, zero, zero)
+        lam_up = np.linalg.solve(np.hstack([s, j_up.T]), g)[4:].reshape(8, 3)
+        flip = pin.SE3(np.diag([1.0, -1.0, -1.0]), np.zeros(3))  # normal the other way along the bar
+        contacts = pin.StdVec_PointContactConstraintModel()
+        for cm, lam in zip(proto.constraint_models, lam_up, strict=True):
+            turn = pin.SE3.Identity() if lam[2] > 0 else flip
+            c = pin.PointContactConstraintModel(m, cm.joint1_id, cm.joint1_placement * turn, cm.joint2_id,
+                                                cm.joint2_placement * turn)
+            c.setCompliance(np.full(3, compliance))
+            c.setFriction(friction)
+            contacts.append(c)
+        jc, datas = _jacobian(proto, contacts, q, data, pin.StdVec_PointContactConstraintData)
+        lam_star = np.linalg.solve(np.hstack([s, jc.T]), g)[4:]
+        normal, tangent = lam_star.reshape(8, 3)[:, 2], np.linalg.norm(lam_star.reshape(8, 3)[:, :2], axis=1)
+        assert np.all(normal > 0) and np.all(tangent < friction * normal)  # inside the friction cones
+        settings = pin.ProximalSettings(1e-12, 1e-12, 1e-9, 200)  # absolute, relative accuracy; mu; iterations
+        try:
+            converged, lam = pin.computeInverseDynamicsConstraintForces(-compliance * lam_star, contacts, datas,
+                                                                        np.zeros(24), settings, False)
+            tau = g - jc.T @ lam
+        except TypeError as exc:  # pin 4.1.0's binding (see the docstring)
+            assert "ModelTpl" in str(exc)
+            converged, tau, lam = pin.contactInverseDynamics(m, data, q, zero, zero, dt, contacts, datas,
+                                                             -dt * compliance * lam_star, settings,
+                                                             np.zeros(24), False)
+        assert converged
+        np.testing.assert_allclose(lam, lam_star, rtol=0, atol=1e-9 * np.abs(lam_star).max())
+        np.testing.assert_allclose(tau[proto.v_pas], 0, atol=1e-9 * np.abs(g).max())
+        np.testing.assert_allclose(tau[proto.v_act], proto.gravity_torques(x), rtol=0, atol=1e-9 * np.abs(g).max())
+
+
+def test_point_constraints_need_pinocchio_4(proto, monkeypatch):
+    monkeypatch.delattr(pin, "PointAnchorConstraintModel", raising=False)
+    with pytest.raises(h4pin.H4Error, match="Pinocchio >= 4.*constraint_models"):
+        proto.point_constraints()
+
+
+def test_collision_model_is_made_once_and_shared(proto):
+    """The collision pairs are added on first use (h4pin.load stays as fast as before), once."""
+    import threading
+
+    robot = h4pin.load("prototype")
+    assert "collision_model" not in robot._lazy
+    seen = []
+    threads = [threading.Thread(target=lambda: seen.append(robot.collision_model)) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len({id(cm) for cm in seen}) == 1
+    assert robot.with_elements(robot.elements).collision_model is seen[0]
+    assert len(seen[0].collisionPairs) == len(proto.collision_model.collisionPairs) > 0

@@ -3,15 +3,22 @@
 
 example-robot-data ships robots as ``share/example-robot-data/robots/<name>_description/{urdf,srdf}``
 and its Python loaders (the separate ``example-robot-data-loaders`` package) look them up by name in
-their ``ROBOTS`` dict. The H4 follows that layout: the wheel installs the URDFs and SRDFs of every
-variant under ``<prefix>/share/example-robot-data/robots/h4_description`` (``shared-data`` in
-``pyproject.toml``), and the SRDF holds the reference configuration ``q0`` (all actuators at 45 deg,
-the centre of ``h4pin.kinematics.closed_form.centre_pose``).
+their ``ROBOTS`` dict, each a subclass of ``example_robot_data.robots_loader.RobotLoader``. The H4
+follows that layout: the wheel installs the URDFs and SRDFs of every variant under
+``<prefix>/share/example-robot-data/robots/h4_description`` (``shared-data`` in ``pyproject.toml``).
+Each SRDF holds the reference configuration ``q0`` (all actuators at 45 deg, the centre of
+``h4pin.kinematics.closed_form.centre_pose``) and the ``<disable_collisions>`` pairs of
+:func:`h4pin.robot.disabled_collisions`.
 
-``import h4pin`` calls :func:`register` when the loaders are installed: it adds ``h4`` (the
-prototype), ``h4_prototype`` and ``h4_symmetric`` to ``example_robot_data.ROBOTS``. Nothing is
-downloaded. ``example_robot_data.load("h4")`` then returns a ``pin.RobotWrapper`` with ``q0`` set,
-and with the closures the URDF tree cannot hold as attributes:
+Registration: :func:`register` adds the names of :data:`NAMES` (``h4``, the prototype, and
+``h4_<variant>`` for every shipped variant) to ``example_robot_data.ROBOTS``; ``import h4pin`` calls
+it when the loaders are installed (their dict has no plug-in hook, so without ``import h4pin``
+``example_robot_data.load("h4")`` raises its own "not found" ``ValueError``). Nothing is
+downloaded. Each loader is a subclass of example-robot-data's ``RobotLoader`` (:data:`H4Loader`,
+made on first use so that h4pin imports without the loaders), so ``robot`` is built by
+example-robot-data's own code: ``pin.RobotWrapper`` from the URDF, ``q0`` from the SRDF, and the
+collision pairs (all pairs minus the SRDF's disabled ones). h4pin adds, as attributes of ``robot``,
+the closures the URDF tree cannot hold:
 
 - ``robot.constraint_models``, ``robot.constraint_datas``: the 8 ``CONTACT_3D`` loop closures
   (Pinocchio ``RigidConstraintModel``, bar order 11, 12, 21, ..., 42), valid for ``robot.model``;
@@ -23,6 +30,7 @@ from __future__ import annotations
 import sys
 from importlib import resources
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -30,15 +38,21 @@ import pinocchio as pin
 
 from h4pin.description.params import VARIANTS
 from h4pin.errors import ParameterError
+from h4pin.extras import MissingExtraError, require
+from h4pin.robot import disable_collisions_xml
 
 #: Folder name of the H4 in example-robot-data's ``robots`` folder.
 DESCRIPTION = "h4_description"
 #: Name of the reference configuration in the SRDF (and ``robot.q0``).
 REFERENCE = "q0"
+#: The names :func:`register` adds to ``example_robot_data.ROBOTS``: ``h4`` (the prototype) and
+#: ``h4_<variant>`` for every shipped variant (:data:`h4pin.VARIANTS`).
+NAMES: tuple[str, ...] = ("h4", *(f"h4_{v}" for v in VARIANTS))
 
 
 def srdf(h4, name: str = "h4") -> str:
-    """SRDF text of ``h4`` with the reference configuration ``q0`` (every joint, loops closed).
+    """SRDF text of ``h4``: the reference configuration ``q0`` (every joint, loops closed) and the
+    link pairs whose collisions are not checked (``h4.disabled_collisions``, with their reasons).
 
     ``q0`` is ``h4.configuration(reference_pose(h4))``: the centre (actuators at 45 deg) rounded to
     1 um and 1 urad, so that the file does not follow the numerical noise of a forward geometry
@@ -57,7 +71,9 @@ def srdf(h4, name: str = "h4") -> str:
         j = model.joints[jid]
         values = " ".join(_short(v) for v in q0[j.idx_q:j.idx_q + j.nq])
         lines.append(f'    <joint name={quoteattr(model.names[jid])} value="{values}"/>')
-    lines += ["  </group_state>", "</robot>"]
+    lines.append("  </group_state>")
+    lines += disable_collisions_xml(h4.disabled_collisions)
+    lines.append("</robot>")
     return "\n".join(lines) + "\n"
 
 
@@ -81,12 +97,20 @@ def _own_dirs() -> list[Path]:
     return [packaged, packaged.parent]
 
 
+def _erd_roots() -> list[Path]:
+    """example-robot-data's own search path for installed robots (``getModelPath``): beside each
+    ``sys.path`` entry's prefix."""
+    return [Path(p) / "../../../share/example-robot-data/robots" for p in sys.path if p]
+
+
 def find_files(variant: str = "prototype") -> tuple[Path, Path]:
     """Paths of the URDF and SRDF of ``variant``.
 
-    First in example-robot-data's layout (``share/example-robot-data/robots/h4_description``, where
-    the wheel installs them, searched the way ``example_robot_data.getModelPath`` does: beside each
-    ``sys.path`` entry's prefix and under ``sys.prefix``), else h4pin's own copies.
+    First h4pin's own copies (inside the installed package, or the repository's ``urdf/`` and
+    ``srdf/``: always those of the running h4pin), else example-robot-data's layout
+    (``share/example-robot-data/robots/h4_description``, where the wheel also installs them,
+    searched the way ``example_robot_data.getModelPath`` does, beside each ``sys.path`` entry's
+    prefix).
 
     Raises:
         ParameterError: unknown variant (the message lists them).
@@ -95,82 +119,109 @@ def find_files(variant: str = "prototype") -> tuple[Path, Path]:
     if variant not in VARIANTS:
         raise ParameterError(f"variant: unknown H4 variant {variant!r}; available: {', '.join(sorted(VARIANTS))}")
     stem = f"h4_{variant}"
-    roots = [Path(p) / "../../../share/example-robot-data/robots" for p in sys.path if p]
-    roots.append(Path(sys.prefix) / "share/example-robot-data/robots")
-    for root in roots:
-        urdf, srdf_path = (root / DESCRIPTION / "urdf" / f"{stem}.urdf", root / DESCRIPTION / "srdf" / f"{stem}.srdf")
+    places = [(base / "urdf" / f"{stem}.urdf", base / "srdf" / f"{stem}.srdf") for base in _own_dirs()]
+    places += [(root / DESCRIPTION / "urdf" / f"{stem}.urdf", root / DESCRIPTION / "srdf" / f"{stem}.srdf")
+               for root in _erd_roots()]
+    for urdf, srdf_path in places:
         if urdf.is_file() and srdf_path.is_file():
             return urdf.resolve(), srdf_path.resolve()
-    for base in _own_dirs():
-        urdf, srdf_path = base / "urdf" / f"{stem}.urdf", base / "srdf" / f"{stem}.srdf"
-        if urdf.is_file() and srdf_path.is_file():
-            return urdf, srdf_path
-    raise FileNotFoundError(f"no {stem}.urdf/.srdf found (searched {DESCRIPTION} and h4pin's own folders)")
+    raise FileNotFoundError(f"no {stem}.urdf/.srdf found (searched h4pin's own folders and {DESCRIPTION})")
 
 
-class H4Loader:
-    """A loader in the form of ``example_robot_data``'s: ``H4Loader().robot`` is a ``RobotWrapper``.
+def _make_loaders() -> dict[str, Any]:
+    """The loader classes: :data:`H4Loader`, a subclass of example-robot-data's ``RobotLoader``,
+    and one subclass per name of :data:`NAMES` (needs ``example-robot-data-loaders``)."""
+    require("example_robot_data.robots_loader", extra="erd", what="the example-robot-data loaders of the H4")
+    from example_robot_data.robots_loader import RobotLoader
 
-    Attributes (as example-robot-data's loaders have them): ``robot`` (with ``q0``, ``urdf``,
-    ``constraint_models``, ``constraint_datas``, ``h4``), ``df_path`` (URDF), ``srdf_path``,
-    ``path``, ``urdf_filename``, ``srdf_filename``, ``ref_posture``, ``free_flyer``.
+    class H4Loader(RobotLoader):
+        """example-robot-data's ``RobotLoader`` for an H4 variant: ``H4Loader().robot`` is its
+        ``pin.RobotWrapper`` built by ``RobotLoader`` (``q0`` and collision pairs from the SRDF),
+        plus ``constraint_models``, ``constraint_datas`` and ``h4``.
+
+        Attributes, as example-robot-data's loaders have them: ``robot``, ``df_path`` (URDF),
+        ``srdf_path``, ``model_path``, ``path`` (``h4_description`` in example-robot-data's layout,
+        "" for h4pin's own copies), ``urdf_filename``, ``srdf_filename``, ``ref_posture`` (``q0``),
+        ``free_flyer`` (False: the plate's floating joint is inside the URDF tree).
+        """
+
+        variant = "prototype"
+        path = DESCRIPTION
+        urdf_subpath = "urdf"
+        srdf_subpath = "srdf"
+        ref_posture = REFERENCE
+        free_flyer = False
+        has_rotor_parameters = False
+
+        def __init__(self, verbose: bool = False):
+            from h4pin.robot import load
+
+            urdf, srdf_path = find_files(self.variant)
+            in_layout = urdf.parent.parent.name == DESCRIPTION and srdf_path.parent.parent == urdf.parent.parent
+            # RobotLoader reads model_path/path/urdf_subpath/urdf_filename (and the srdf ones).
+            self.path = DESCRIPTION if in_layout else ""
+            self.model_path = str(urdf.parent.parent.parent if in_layout else urdf.parent.parent)
+            self.urdf_filename, self.srdf_filename = urdf.name, srdf_path.name
+            super().__init__(verbose)
+            robot = self.robot
+            # RobotLoader sets robot.urdf by looking ``path`` up again in its own folders, which do
+            # not hold h4pin's own copies: point it at the file that was read.
+            robot.urdf = self.df_path
+            h4 = load(self.df_path)
+            # Same URDF, same parser: the closures' joint ids are valid for robot.model.
+            robot.h4 = h4
+            robot.constraint_models = h4.constraint_models
+            robot.constraint_datas = pin.StdVec_RigidConstraintData()
+            for cm in h4.constraint_models:
+                robot.constraint_datas.append(cm.createData())
+
+    def subclass(variant: str) -> type:
+        name = f"H4{''.join(part.capitalize() for part in variant.split('_'))}Loader"
+        return type(name, (H4Loader,), {"variant": variant, "__module__": __name__, "__qualname__": name})
+
+    H4Loader.__module__, H4Loader.__qualname__ = __name__, "H4Loader"
+    loaders = {"h4": subclass("prototype"), **{f"h4_{v}": subclass(v) for v in VARIANTS}}
+    return {"H4Loader": H4Loader, "LOADERS": loaders}
+
+
+_LAZY: dict[str, Any] = {}
+
+
+def __getattr__(name: str) -> Any:
+    """``H4Loader`` and ``LOADERS`` (the loader of each name of :data:`NAMES`), made on first use.
+
+    Raises:
+        MissingExtraError: example-robot-data-loaders is not installed.
     """
-
-    variant = "prototype"
-    path = DESCRIPTION
-    urdf_subpath = "urdf"
-    srdf_subpath = "srdf"
-    ref_posture = REFERENCE
-    free_flyer = False  # the plate's floating joint is inside the URDF tree
-    has_rotor_parameters = False
-
-    def __init__(self, verbose: bool = False):
-        from h4pin.robot import load
-
-        self.verbose = verbose
-        urdf, srdf_path = find_files(self.variant)
-        self.urdf_filename, self.srdf_filename = urdf.name, srdf_path.name
-        self.df_path, self.srdf_path = str(urdf), str(srdf_path)
-        robot = pin.RobotWrapper.BuildFromURDF(self.df_path, [str(urdf.parent)])
-        pin.loadReferenceConfigurations(robot.model, self.srdf_path, verbose)
-        robot.q0 = np.array(robot.model.referenceConfigurations[REFERENCE])
-        robot.urdf = self.df_path
-        h4 = load(urdf)
-        # Same URDF, same parser: the closures' joint ids are valid for robot.model.
-        robot.h4 = h4
-        robot.constraint_models = h4.constraint_models
-        robot.constraint_datas = pin.StdVec_RigidConstraintData()
-        for cm in h4.constraint_models:
-            robot.constraint_datas.append(cm.createData())
-        self.robot = robot
+    if name in ("H4Loader", "LOADERS"):
+        if not _LAZY:
+            _LAZY.update(_make_loaders())
+        return _LAZY[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _loader(variant: str) -> type[H4Loader]:
-    return type(f"H4{variant.capitalize()}Loader", (H4Loader,), {"variant": variant})
-
-
-#: The names :func:`register` adds, and the loader of each.
-LOADERS = {"h4": _loader("prototype"), **{f"h4_{v}": _loader(v) for v in VARIANTS}}
-
-
-def register() -> bool:
-    """Add the H4 loaders to ``example_robot_data.ROBOTS``; False when the loaders package is absent."""
+def available() -> bool:
+    """Whether example-robot-data's loaders are installed (``example_robot_data.robots_loader``)."""
     try:
-        import example_robot_data
-    except ImportError:
+        require("example_robot_data.robots_loader", extra="erd", what="")
+    except MissingExtraError:
         return False
-    robots = getattr(example_robot_data, "ROBOTS", None)
-    if robots is None:  # not the loaders package
-        return False
-    robots.update(LOADERS)
-    try:  # load() looks names up in the robots_loader module's dict (the same object today)
-        from example_robot_data import robots_loader
-
-        if robots_loader.ROBOTS is not robots:
-            robots_loader.ROBOTS.update(LOADERS)
-    except ImportError:
-        pass
     return True
 
 
-__all__ = ["DESCRIPTION", "LOADERS", "REFERENCE", "H4Loader", "find_files", "register", "srdf"]
+def register() -> tuple[str, ...]:
+    """Add the H4 loaders to ``example_robot_data.ROBOTS`` under :data:`NAMES`; returns the names.
+
+    Idempotent. ``import h4pin`` calls it when the loaders are installed.
+
+    Raises:
+        MissingExtraError: example-robot-data-loaders is not installed (``pip install 'h4pin[erd]'``).
+    """
+    loaders = __getattr__("LOADERS")
+    from example_robot_data import robots_loader
+
+    robots_loader.ROBOTS.update(loaders)  # load() and loader() look names up in this dict
+    return tuple(loaders)
+
+
+__all__ = ["DESCRIPTION", "NAMES", "REFERENCE", "available", "find_files", "reference_pose", "register", "srdf"]

@@ -1,0 +1,227 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The H4 as an elastic closed-loop Pinocchio model: :func:`elastic_model`.
+
+Every compliance of eq. 30, and every optional element the robot carries
+(:attr:`H4.elements <h4pin.H4>`), becomes virtual joints with springs inserted into a copy of the
+robot's own ``pin.Model`` (:func:`h4pin.elastic.engine.insert_joints`); the eight closures are
+re-created on the new model. :func:`h4pin.elastic.engine.compliance` then gives K from Pinocchio's
+closure and frame Jacobians alone, with the four actuators locked: nothing of the paper's
+matrices or of :mod:`h4pin.stiffness` is used, only the spring data (read from
+:attr:`H4.geometry <h4pin.H4>` and :attr:`H4.elements <h4pin.H4>`).
+
+The virtual joints (world axes and points at the model's neutral configuration, where they read 0):
+
+* ``actuator_i_elastic``: revolute about u_i through P_i, in series with actuator i, compliance
+  ``1/kc + phi^3 r/(3 E I)`` (the actuator and the forearm's bending, eq. 30's rotation of the
+  forearm about u_i); ``forearm_i_torsion``: revolute about the forearm axis P_i -> A_i through
+  A_i, compliance ``phi r/(G I0)``; both carry the forearm tip (A_i1, A_i2 and the universal joints);
+* ``bar_ij_tension``: prismatic along bar ij, compliance ``l/(Sb Eb)``; the closure's bar side
+  moves to its end;
+* elements, each only when on: ``bar_ij_ball_A``, ``bar_ij_ball_B`` (prismatic along the bar,
+  ``ball_radial`` each); ``lateral_k_radial_a``, ``_b`` (prismatic normal to v_k),
+  ``lateral_k_axial`` (prismatic along v_k), ``lateral_k_tilt_a``, ``_b`` (revolutes about the
+  normals through C_k), between the central bar and the revolute of lateral bar k;
+  ``shaft_i_tilt_a``, ``_b`` (revolutes about the normals to u_i through P_i) and
+  ``mount_i_x``, ``_y``, ``_z`` (prismatic) and ``mount_i_rx``, ``_ry``, ``_rz`` (revolutes
+  through P_i) between the base and actuator i; beams (``central_k_*`` on segment D-C_k,
+  ``arm_i_*`` on lateral bar k's arm C_k-B_i, whose tip carries B_i1, B_i2): torsion, a revolute
+  about the beam axis, ``L/(GJ)``; bending, revolutes about the two normals at the two Gauss points
+  ``L/2 -+ L/(2 sqrt 3)`` from the root, ``L/(2 EI)`` each, which gives the Euler-Bernoulli
+  cantilever's tip compliance exactly (the two-point Gauss rule integrates ``(L - x)^2`` exactly).
+
+Outputs: frame D (LOCAL_WORLD_ALIGNED, the 6 rows) and the two lateral revolutes (signed so that
+omega_k is right-handed about v_k with v_k . z > 0), i.e. ``dtp = [dD, dOmega, domega_1, domega_2]``
+and ``Gamma_ext = [F, T, t1, t2]`` as :func:`h4pin.compliance`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin.elastic import engine
+from h4pin.elastic.engine import FrameOutput, Insertion, JointOutput, Output, VirtualJoint
+from h4pin.kinematics import pinocchio as kin
+
+_GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
+
+
+def _normals(axis: np.ndarray) -> np.ndarray:
+    """(2, 3): two orthonormal vectors normal to the unit ``axis``."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(axis, e1)])
+
+
+def _stiff(compliance: float) -> float:
+    """Stiffness of a compliance (``inf`` for 0: the joint is left out)."""
+    return 1.0 / compliance if compliance > 0 else math.inf
+
+
+def _beam(prefix: str, root: np.ndarray, tip: np.ndarray, ei: float, gj: float) -> list[VirtualJoint]:
+    """A cantilever root -> tip (clamped at root): 4 bending revolutes at the Gauss points, 1 torsion."""
+    vec = tip - root
+    length = float(np.linalg.norm(vec))
+    e = vec / length
+    out = [VirtualJoint(f"{prefix}_bend_{g + 1}{'ab'[a]}", "revolute", n, root + x * vec, 2.0 * ei / length)
+           for g, x in enumerate(_GAUSS) for a, n in enumerate(_normals(e))]
+    out.append(VirtualJoint(f"{prefix}_torsion", "revolute", e, root, gj / length))
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ElasticH4:
+    """An H4 whose compliances are virtual elastic joints (:func:`elastic_model`); immutable.
+
+    Attributes:
+        robot: the :class:`h4pin.H4` it was built from.
+        model: the elastic ``pin.Model`` (shared; never changed).
+        constraint_models: its 8 closures (``pin.StdVec_RigidConstraintModel``, CONTACT_3D).
+        stiffness: ``{elastic joint name: stiffness}`` (N.m/rad or N/m), read-only.
+        locked: the four actuated joints.
+        outputs: D (6 rows) and the two lateral revolutes.
+        q_index: (robot nq,) where each coordinate of the robot's configuration sits in the
+            elastic model's.
+        data: the calling thread's own ``pin.Data`` of :attr:`model` (one per thread).
+    """
+
+    robot: Any
+    model: pin.Model
+    constraint_models: Any
+    stiffness: Mapping[str, float]
+    locked: tuple[str, ...]
+    outputs: tuple[Output, ...]
+    q_index: np.ndarray
+    _local: threading.local = dataclasses.field(default_factory=threading.local, repr=False)
+
+    @property
+    def data(self) -> pin.Data:
+        """The calling thread's own ``pin.Data`` of :attr:`model`, made on first use (Pinocchio
+        takes tens of ms to make one for this model, so it is kept, one per thread)."""
+        d = getattr(self._local, "data", None)
+        if d is None:
+            d = self._local.data = self.model.createData()
+        return d
+
+    @property
+    def elastic_joints(self) -> tuple[str, ...]:
+        """Names of the elastic joints, in insertion order."""
+        return tuple(self.stiffness)
+
+    def configuration(self, pose: np.ndarray) -> np.ndarray:
+        """(nq,) the elastic model's configuration at a rigid pose [x, y, z, theta] (m, rad): the
+        robot's assembled one (:meth:`h4pin.H4.configuration`), every virtual joint at 0.
+
+        Raises:
+            UnreachablePoseError (and subclasses): as :meth:`h4pin.H4.configuration`.
+        """
+        q = np.zeros(self.model.nq)
+        q[self.q_index] = kin.configuration(self.robot, pose)
+        return q
+
+    def compliance(self, pose: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
+        """K (8, 8) at a pose (4,): ``dtp = K Gamma_ext``, dtp = [dD, dOmega, domega_1, domega_2]
+        (m, rad), Gamma_ext = [F at D, T, t1, t2] (N, N.m), world axes (as :func:`h4pin.compliance`).
+
+        Args:
+            pose: [x, y, z, theta] (m, rad).
+            data: a ``pin.Data`` of :attr:`model` to work in (default: the calling thread's own,
+                :attr:`data`).
+
+        Raises:
+            UnreachablePoseError (and subclasses): the robot cannot take the pose.
+            UnrestrainedMotionError: the pose is singular (a motion strains no spring).
+        """
+        return engine.compliance(self.model, self.constraint_models, self.configuration(pose), locked=self.locked,
+                                 stiffness=self.stiffness, outputs=self.outputs,
+                                 data=self.data if data is None else data)
+
+
+def elastic_model(h4) -> ElasticH4:
+    """The elastic model of an H4 (module docstring), with its own elements (``h4.elements``).
+
+    Args:
+        h4: the robot (:func:`h4pin.load`; ``load(..., elements=...)`` for other elements).
+
+    Returns:
+        An :class:`ElasticH4`; ``elastic_model(h4).compliance(pose)`` equals
+        ``h4pin.compliance(h4, pose, model="consistent").matrix``.
+    """
+    m, g, el, ix = h4.model, h4.geometry, h4.elements, h4.index
+    d = m.createData()
+    pin.framesForwardKinematics(m, d, pin.neutral(m))
+
+    def at(name: str) -> np.ndarray:
+        return d.oMf[m.getFrameId(name)].translation.copy()
+
+    def frames(*names: str) -> tuple[str, ...]:  # the named frames and their fixed joints' frames
+        return tuple(f for n in names for f in (n, f"{n}_frame") if m.existFrame(f))
+
+    s = g.springs
+    phi = s["forearm_stressed_fraction"]
+    c_act = 1.0 / s["kc"] + phi**3 * g.r / (3.0 * s["E"] * s["I"])
+    c_tors = phi * g.r / (s["G"] * s["I0"])
+    c_tens = g.l / (s["Sb"] * s["Eb"])
+    cms = h4.constraint_models
+    insertions = []
+    for i in range(4):
+        act, p, u = h4.actuated_joint_names[i], g.P[i], g.u[i]
+        mount = [VirtualJoint(f"mount_{i + 1}_{a}", "prismatic", e, p, _stiff(el.base_translation[i]))
+                 for a, e in zip("xyz", np.eye(3), strict=True)]
+        mount += [VirtualJoint(f"mount_{i + 1}_r{a}", "revolute", e, p, _stiff(el.base_rotation[i]))
+                  for a, e in zip("xyz", np.eye(3), strict=True)]
+        mount += [VirtualJoint(f"shaft_{i + 1}_tilt_{'ab'[a]}", "revolute", n, p, _stiff(el.shaft_tilt[i]))
+                  for a, n in enumerate(_normals(u))]
+        insertions.append(Insertion("universe", tuple(mount), children=(act,)))
+        tip = g.A0_leg[i]
+        forearm = (VirtualJoint(f"actuator_{i + 1}_elastic", "revolute", u, p, 1.0 / c_act[i]),
+                   VirtualJoint(f"forearm_{i + 1}_torsion", "revolute", tip - p, tip, 1.0 / c_tors[i]))
+        universal = tuple(m.names[m.parents[cms[2 * i + j].joint1_id]] for j in range(2))
+        insertions.append(Insertion(act, forearm, children=universal,
+                                    frames=frames(f"A_{i + 1}", f"A_{i + 1}1", f"A_{i + 1}2")))
+    for n, cm in enumerate(cms):
+        name = f"bar_{n // 2 + 1}{n % 2 + 1}"
+        end = (d.oMi[cm.joint1_id] * cm.joint1_placement).translation
+        w = end - g.A0[n]
+        ball = _stiff(el.ball_radial[n])
+        bar = (VirtualJoint(f"{name}_ball_A", "prismatic", w, end, ball),
+               VirtualJoint(f"{name}_tension", "prismatic", w, end, 1.0 / c_tens[n]),
+               VirtualJoint(f"{name}_ball_B", "prismatic", w, end, ball))
+        on_end = tuple(f.name for fid, f in enumerate(m.frames) if f.parentJoint == cm.joint1_id
+                       and np.linalg.norm(d.oMf[fid].translation - end) < 1e-12)
+        insertions.append(Insertion(m.names[cm.joint1_id], bar, frames=on_end, closures=((n, 1),)))
+    central = m.names[m.parents[ix.jid_lat[0]]]
+    dpt = at("D")
+    for k in range(2):
+        lat, c, v = m.names[ix.jid_lat[k]], at(f"C_{k + 1}"), g.v[k]
+        joint = _beam(f"central_{k + 1}", dpt, c, el.central_EI[k], el.central_GJ[k])
+        joint += [VirtualJoint(f"lateral_{k + 1}_radial_{'ab'[a]}", "prismatic", n, c, _stiff(el.revolute_radial[k]))
+                  for a, n in enumerate(_normals(v))]
+        joint.append(VirtualJoint(f"lateral_{k + 1}_axial", "prismatic", v, c, _stiff(el.revolute_axial[k])))
+        joint += [VirtualJoint(f"lateral_{k + 1}_tilt_{'ab'[a]}", "revolute", n, c, _stiff(el.revolute_tilt[k]))
+                  for a, n in enumerate(_normals(v))]
+        insertions.append(Insertion(central, tuple(joint), children=(lat,)))
+    for i in range(4):
+        k = int(g.leg_lat[i])
+        names = (f"B_{i + 1}1", f"B_{i + 1}2")
+        b = 0.5 * (at(names[0]) + at(names[1]))
+        arm = _beam(f"arm_{i + 1}", at(f"C_{k + 1}"), b, el.lateral_EI[i], el.lateral_GJ[i])
+        insertions.append(Insertion(m.names[ix.jid_lat[k]], tuple(arm), frames=frames(f"B_{i + 1}", *names),
+                                    closures=((2 * i, 2), (2 * i + 1, 2))))
+    model, closures, q_index = engine.insert_joints(m, insertions, cms)
+    stiffness = {v.name: float(v.stiffness) for ins in insertions for v in ins.joints if math.isfinite(v.stiffness)}
+    outputs = (FrameOutput("D"), *(JointOutput(m.names[ix.jid_lat[k]], float(ix.lat_sign[k])) for k in range(2)))
+    q_index.setflags(write=False)
+    return ElasticH4(h4, model, closures, MappingProxyType(stiffness), tuple(h4.actuated_joint_names), outputs,
+                     q_index)
+
+
+__all__ = ["ElasticH4", "elastic_model"]
