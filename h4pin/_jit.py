@@ -75,6 +75,9 @@ class Gate:
         ``H4PIN_WARMUP=inline``); else starts the background warm-up (once) and says False."""
         if self._ok:
             return True
+        if all(getattr(f, "signatures", True) for f in self.functions):  # compiled in this process
+            self._ok = True
+            return True
         if _forced or mode() == "inline":
             return True
         now = time.monotonic()

@@ -288,8 +288,8 @@ def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[
     the pose before Pinocchio runs (the long way then names the reason)."""
     code = MODELS.index(model)
     if method == "auto" and h4.geometry.ideal and kernel.ONE.ready:
-        K, q, cond, status, T = kernel.one(kernel.for_geometry(h4.geometry), x, code, terms)
-        return K, q, float(cond), int(status), T if terms else None
+        out, q, cond, status = kernel._one(x, kernel.for_geometry(h4.geometry).packed, code, terms)
+        return out[0], q, cond, status, out[1:] if terms else None
     if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready and not terms:
         from h4pin.stiffness import pinocchio as pinocchio_backend
 

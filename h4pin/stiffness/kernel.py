@@ -156,7 +156,8 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        return _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False)[:4]
+        out, q, cond, status = _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False)
+        return out[0], q, cond, status
 
 
 def prepare(g: H4Geometry | Kernel | Any) -> Kernel:
@@ -301,19 +302,19 @@ def _views(G):
 
 @njit(cache=True, nogil=True)
 def _one(x, G, model, want_terms):
-    """One pose with two allocations besides the outputs: K, q, condition, status and the terms
-    T (4, 8, 8) (uninitialised unless ``want_terms``)."""
+    """One pose, with one scratch allocation: ``out`` (5, 8, 8) (K, then the four terms) with the
+    terms, else (1, 8, 8) (K), q, condition, status (two arrays to box instead of three)."""
     n = core.SCRATCH + 16
     buf = np.empty(n if want_terms else n + 256)
-    K = np.empty((8, 8))
+    out = np.empty((5 if want_terms else 1, 8, 8))
     q = np.empty(4)
-    T = np.empty((4, 8, 8)) if want_terms else buf[n:n + 256].reshape(4, 8, 8)
+    T = out[1:5] if want_terms else buf[n:n + 256].reshape(4, 8, 8)
     A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch_in(buf)
     J = buf[core.SCRATCH:n].reshape(4, 4)
     P, C = _views(G)
-    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, K, q, T, want_terms, J, False, A, B, W, lw, M, Y,
-                         Gc, ws, g, d, e)
-    return K, q, cond, status, T
+    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, out[0], q, T, want_terms, J, False, A, B, W, lw, M,
+                         Y, Gc, ws, g, d, e)
+    return out, q, cond, status
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -428,8 +429,9 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
 def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
     """:meth:`Kernel.__call__` without its checks, for a caller that has checked them: ``x`` a
     finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent). Returns K, q, condition,
-    status and the terms (4, 8, 8) (meaningless unless ``terms``)."""
-    return _one(x, kern.packed, code, terms)
+    status and the terms (4, 8, 8) (None unless ``terms``)."""
+    out, q, cond, status = _one(x, kern.packed, code, terms)
+    return out[0], q, cond, status, out[1:] if terms else None
 
 
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
