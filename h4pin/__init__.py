@@ -16,7 +16,7 @@ from h4pin import _compat  # noqa: E402, F401  (gives Pinocchio 3.x a RigidConst
 from h4pin.description.elements import Elements  # noqa: E402
 from h4pin.description.geometry import H4Geometry  # noqa: E402
 from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params  # noqa: E402
-from h4pin.elastic import ElasticH4, elastic_model  # noqa: E402
+from h4pin.elastic import ElasticH4, Modes, Payload, elastic_model, modes  # noqa: E402
 from h4pin.errors import (  # noqa: E402
     ConvergenceError,
     H4Error,
@@ -59,7 +59,9 @@ __all__ = [
     "Kinematics",
     "LoadError",
     "MalformedURDFError",
+    "Modes",
     "ParameterError",
+    "Payload",
     "PoseError",
     "SingularPoseError",
     "URDFNotFoundError",
@@ -67,6 +69,7 @@ __all__ = [
     "compliance",
     "elastic_model",
     "load",
+    "modes",
     "symmetric_params",
     "toleranced_params",
 ]

@@ -6,7 +6,9 @@
   :func:`~h4pin.elastic.engine.insert_joints` to add virtual elastic joints to a model;
 * :mod:`h4pin.elastic.h4`: :func:`~h4pin.elastic.h4.elastic_model`, the H4 with every compliance of
   eq. 30 and of its optional elements as virtual joints; an independent route to
-  :func:`h4pin.compliance` (``model="consistent"``). See ``docs/elastic.md``.
+  :func:`h4pin.compliance` (``model="consistent"``). See ``docs/elastic.md``;
+* :mod:`h4pin.elastic.modes`: :func:`~h4pin.elastic.modes.modes`, the natural frequencies and mode
+  shapes of the elastic H4 with the URDF's link inertias and a payload. See ``docs/modes.md``.
 """
 
 from h4pin.elastic.engine import (
@@ -20,6 +22,7 @@ from h4pin.elastic.engine import (
     insert_joints,
 )
 from h4pin.elastic.h4 import ElasticH4, elastic_model
+from h4pin.elastic.modes import Modes, Payload, modes
 
-__all__ = ["ElasticH4", "FrameOutput", "Insertion", "JointOutput", "UnassembledError", "UnrestrainedMotionError",
-           "VirtualJoint", "compliance", "elastic_model", "insert_joints"]
+__all__ = ["ElasticH4", "FrameOutput", "Insertion", "JointOutput", "Modes", "Payload", "UnassembledError",
+           "UnrestrainedMotionError", "VirtualJoint", "compliance", "elastic_model", "insert_joints", "modes"]
