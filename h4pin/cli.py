@@ -123,6 +123,8 @@ def view(
     exaggeration: float | None = typer.Option(None, help="factor on the drawn deflection (default: automatic)"),
     model: str = typer.Option("consistent", help="'consistent' (symmetric K) or 'paper'"),
     host: str = typer.Option("127.0.0.1", help="interface the server listens on; 0.0.0.0 lets other machines in"),
+    mode: int | None = typer.Option(None, help="also animate this natural mode of the elastic robot (1: the first)"),
+    payload: float | None = typer.Option(None, help="with --mode: a point payload at D, in kg"),
 ) -> None:
     """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser).
 
@@ -138,6 +140,12 @@ def view(
         fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
     if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
         fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
+    if mode is not None and mode < 1:
+        fail(f"--mode must be >= 1 (1: the first natural mode), got {mode}")
+    if payload is not None and not (math.isfinite(payload) and payload >= 0):
+        fail(f"--payload must be a finite mass >= 0 in kg, got {payload:g}")
+    if payload is not None and mode is None:
+        fail("--payload goes with --mode (the payload of the animated mode)")
     from h4pin.files import check_output
     from h4pin.io import meshcat_server, viewer
 
@@ -148,10 +156,13 @@ def view(
     else:
         meshcat_server.check_host(host)
 
+    from h4pin.elastic import Payload
+
     h4 = load_robot(variant, urdf)
     scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
                         scale=scale, exaggeration=exaggeration, field=field, rotational=rotational, model=model,
-                        host=host)
+                        host=host, mode=None if mode is None else mode - 1,
+                        payload=None if payload is None else Payload(payload))
     try:
         for line in scene.legend:
             typer.echo(line)
@@ -258,17 +269,19 @@ def atlas(
     if figures is not None:
         check_output(figures / "atlas_status.png", "--figures")
     n_z = z_range[2] if z_range else max(len(z or []), 1)
-    atlas_module.check_memory(x[2] * y[2] * n_z * max(len(theta or []), 1))
+    if out.suffix != ".zarr":  # a .zarr atlas streams to disk: its memory does not grow with the grid
+        atlas_module.check_memory(x[2] * y[2] * n_z * max(len(theta or []), 1))
     h4 = load_robot(variant, urdf)
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
-    ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet)
-    ok = ds.status.values == 0
-    typer.echo(f"{ok.sum()} of {ok.size} poses reachable and regular")
-    if ok.any():
-        c = ds.compliance_max.values[ok] * 1e6
-        typer.echo(f"worst-direction compliance {c.min():.1f} to {c.max():.1f} um/N")
-    typer.echo(f"wrote {atlas_module.save(ds, out)}")
+    ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out)
+    ok = ds.status == 0  # lazy (dask) for a streamed .zarr atlas: reduced chunk by chunk
+    n_ok = int(ok.sum())
+    typer.echo(f"{n_ok} of {ok.size} poses reachable and regular")
+    if n_ok:
+        c = ds.compliance_max * 1e6
+        typer.echo(f"worst-direction compliance {float(c.min()):.1f} to {float(c.max()):.1f} um/N")
+    typer.echo(f"wrote {out}")
     if figures is not None:
         for path in atlas_module.plot(ds, figures):
             typer.echo(f"wrote {path}")
@@ -313,6 +326,38 @@ def sweep(
     if urdf_dir is not None:
         for path in sweep_module.write_best(res, urdf_dir):
             typer.echo(f"wrote {path}")
+
+
+@app.command()
+def cycle(
+    time: float = typer.Option(0.5, "--time", help="cycle time, s (25 mm up, 305 mm across, 25 mm down and back)"),
+    payload: list[float] = typer.Option([0.5], help="payload at D, kg; repeat for one column per payload"),
+    figure: Path | None = typer.Option(None, help="write trajectory, load, deflection and torques to this PNG"),
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    heading: float = typer.Option(0.0, help="direction of the stroke in the horizontal plane, rad (0: +x)"),
+    samples: int = typer.Option(400, help="time steps over the cycle"),
+    model: str = typer.Option("consistent", help="'consistent' or 'paper'"),
+) -> None:
+    """Tool deflection along the standard pick-and-place cycle (closed-loop inverse dynamics, quasi-static)."""
+    from h4pin.files import check_output
+    from h4pin.studies import cycle as cycle_module
+
+    if not (math.isfinite(time) and time > 0):
+        fail(f"--time must be a finite number > 0 (s), got {time:g}")
+    for p in payload:
+        if not (math.isfinite(p) and p >= 0):
+            fail(f"--payload must be a finite mass >= 0 (kg), got {p:g}")
+    if samples < 8:
+        fail(f"--samples must be >= 8, got {samples}")
+    check_finite("--heading", (heading,))
+    if figure is not None:
+        check_output(figure, "--figure", suffixes=(".png",))
+    h4 = load_robot(variant, urdf)
+    results = [cycle_module.run(h4, time, p, samples=samples, model=model, heading=heading) for p in payload]
+    typer.echo(cycle_module.report(results))
+    if figure is not None:
+        typer.echo(f"wrote {cycle_module.write_figure(results[-1], figure, results[:-1])}")
 
 
 @app.command()

@@ -253,7 +253,11 @@ def test_screenshot_is_world_readable(proto, centre, tmp_path):
      (["--scale", "-2"], "--scale must be a finite number > 0 (mm per um/N), got -2"),
      (["--exaggeration", "nan"], "--exaggeration must be a finite number > 0, got nan"),
      (["--exaggeration", "inf"], "--exaggeration must be a finite number > 0, got inf"),
-     (["--model", "exact"], "model must be one of")],
+     (["--model", "exact"], "model must be one of"),
+     (["--mode", "0"], "--mode must be >= 1"),
+     (["--mode", "99"], "mode index must be an integer in 0..15"),
+     (["--mode", "1", "--payload", "-1"], "--payload must be a finite mass >= 0"),
+     (["--payload", "0.5"], "--payload goes with --mode")],
 )
 def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
     target = tmp_path / "h4.html"
@@ -320,3 +324,47 @@ def test_server_stops_when_the_viewer_is_killed():
     while alive(server) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not alive(server), "the meshcat server outlived a killed viewer"
+
+
+def _animation(html: str) -> dict:
+    """The set_animation command of a static meshcat page (msgpack blobs, base64)."""
+    import base64
+    import re
+
+    import umsgpack
+
+    for blob in re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html):
+        msg = umsgpack.unpackb(base64.b64decode(blob))
+        if msg["type"] == "set_animation":
+            return msg
+    raise AssertionError("the page has no animation")
+
+
+def test_mode_animation_moves_the_plate_by_the_mode_shape(proto, centre):
+    """The static page keeps the animation, and at a quarter period the central bar has moved
+    rigidly by amplitude x the mode's plate motion: D by a dD, the bar turned by exp(a dOmega)."""
+    import pinocchio as pin
+
+    from h4pin.elastic import Payload, modes
+
+    payload = Payload(0.5)
+    with viewer.Scene(proto) as scene:
+        scene.pose(centre)
+        freq, amp = scene.mode(centre, 1, payload, frames=8)
+        anim = _animation(scene.html())
+    ref = modes(proto, centre, payload)
+    assert freq == pytest.approx(ref.frequencies[1], rel=1e-12)
+    tracks = {a["path"].rsplit("/", 1)[-1]: a["clip"]["tracks"] for a in anim["animations"]}
+    assert len(tracks) == len(proto.visual_model.geometryObjects)
+
+    def placement(name: str, k: int) -> pin.SE3:
+        pos, quat = (next(t for t in tracks[name] if t["name"] == f".{key}")["keys"][k]["value"]
+                     for key in ("position", "quaternion"))
+        return pin.SE3(pin.Quaternion(quat[3], *quat[:3]).matrix(), np.array(pos))
+
+    motion = placement("central_bar_0", 2) * placement("central_bar_0", 0).inverse()  # sin(2 pi 2/8) = 1
+    tp = amp * ref.shapes_tp[1]
+    d = centre[:3]  # the tracks are in the robot's frame (the scene's lift is on the root)
+    assert np.linalg.norm(motion.act(d) - d - tp[:3]) < 1e-9 * max(1.0, np.linalg.norm(tp[:3]))
+    assert np.linalg.norm(pin.log3(motion.rotation) - tp[3:6]) < 1e-9
+    assert np.linalg.norm(tp[:3]) > 1e-3  # visible: millimetres on screen

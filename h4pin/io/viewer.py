@@ -20,7 +20,9 @@ What is drawn, and the scales (also written in the page's legend, :attr:`Scene.l
 * under a load: a transparent ghost of the deflected robot, exaggerated ``exaggeration`` times,
   and an arrow for the force at D;
 * optionally an ellipsoid field over a workspace grid, coloured by the largest translational
-  compliance (um/N, viridis; the range is in the legend).
+  compliance (um/N, viridis; the range is in the legend);
+* optionally a natural mode of the elastic robot (:func:`h4pin.modes`), animated and exaggerated
+  (:meth:`Scene.mode`; the static page keeps the animation).
 """
 
 from __future__ import annotations
@@ -230,6 +232,62 @@ class Scene:
                            f"exaggerated x{exaggeration:g} (true |dD| = {np.linalg.norm(dtp[:3]) * 1e6:.1f} um)")
         return exaggeration
 
+    def mode(self, pose: np.ndarray, index: int = 0, payload=None, amplitude: float | None = None,
+             frames: int = 48, robot=None) -> tuple[float, float]:
+        """Animate natural mode ``index`` (0: the first) of the elastic robot at ``pose``
+        (:func:`h4pin.modes`), exaggerated, as a meshcat animation (kept by :meth:`html`).
+
+        The rigid robot is drawn through one period: the plate moves by ``a sin(t) dtp`` of the
+        mode and each actuator's forearm by the mode's rotation of its elastic actuator joint
+        (actuator + forearm bending); forearm torsion and bar stretch are not drawn (the bars are
+        re-aimed at the moved plate).
+
+        Args:
+            payload: an :class:`h4pin.Payload` on the plate, or None.
+            amplitude: factor on the mass-normalised mode (default: D moves about 30 mm on screen).
+            frames: animation frames per period (played at 24 frames/s).
+            robot: an :class:`h4pin.ElasticH4` of this robot to reuse (default: built here).
+
+        Returns:
+            (frequency in Hz, the amplitude used).
+        """
+        from meshcat.animation import Animation
+
+        from h4pin.elastic import elastic_model, modes
+        from h4pin.errors import ParameterError
+        from h4pin.kinematics import pinocchio as kin
+        from h4pin.kinematics.closed_form import PlateState
+
+        x = geometry.as_pose(pose)
+        em = robot if robot is not None else elastic_model(self.h4)
+        res = modes(em, x, payload)
+        if not (isinstance(index, int | np.integer) and 0 <= index < len(res.frequencies)):
+            raise ParameterError(f"mode index must be an integer in 0..{len(res.frequencies) - 1}, got {index!r}")
+        tp = res.shapes_tp[index]
+        act = np.array([res.shapes_q[index, em.model.joints[em.model.getJointId(f"actuator_{i + 1}_elastic")].idx_v]
+                        for i in range(4)])
+        if amplitude is None:
+            amplitude = _nice(GHOST_SIZE / max(np.linalg.norm(tp[:3]), 1e-12))
+        st = kin.state(self.h4, x)
+        anim = Animation(default_framerate=24)
+        viewer, self.robot.viewer = self.robot.viewer, None
+        try:
+            for f in range(frames):
+                a = amplitude * np.sin(2 * np.pi * f / frames)
+                q = kin.assemble(self.h4, PlateState(st.q + a * act, st.D + a * tp[:3], pin.exp3(a * tp[3:6]) @ st.R,
+                                                     st.omega + a * tp[6:8]))
+                with anim.at_frame(self.vis, f) as frame:
+                    self.robot.viewer = frame
+                    self.robot.display(q)
+        finally:
+            self.robot.viewer = viewer
+        self.vis.set_animation(anim, play=True, repetitions=0)
+        freq = float(res.frequencies[index])
+        self.legend.append(f"animation: mode {index + 1} of the elastic robot, {freq:.1f} Hz"
+                           f"{'' if payload is None else f' with a {payload.mass:g} kg payload'}, exaggerated "
+                           f"x{amplitude:g} (mass-normalised shape; actuators locked)")
+        return freq, amplitude
+
     def _arrow(self, path: str, start: np.ndarray, direction: np.ndarray) -> None:
         rot = _rotation_y_to(direction)
         shaft, head = 0.8 * ARROW_LENGTH, 0.2 * ARROW_LENGTH
@@ -317,7 +375,7 @@ def workspace_grid(h4: H4, n: int = 5, span: float = 0.2, heights: tuple[float, 
 def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None, *, scale: float | None = None,
          exaggeration: float | None = None, field: bool = False, rotational: bool = False,
          model: str = "consistent", vis: meshcat.Visualizer | None = None,
-         host: str = meshcat_server.LOCALHOST) -> Scene:
+         host: str = meshcat_server.LOCALHOST, mode: int | None = None, payload=None) -> Scene:
     """Draw the H4 at ``pose`` with its compliance ellipsoid, and optionally more.
 
     Args:
@@ -331,6 +389,8 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
         model: "consistent" (default, symmetric K) or "paper".
         vis: Existing meshcat visualizer (e.g. in Jupyter); default: a new server.
         host: Interface a new server listens on (default 127.0.0.1, this machine only).
+        mode: Also animate this natural mode of the elastic robot (0: the first; :meth:`Scene.mode`).
+        payload: An :class:`h4pin.Payload` on the plate for ``mode``.
 
     Returns:
         The :class:`Scene` (``scene.url``, ``scene.write_html(path)``, ``scene.close()``).
@@ -352,6 +412,8 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
             scene.load(x, load, model, exaggeration)
         if field:
             scene.field(workspace_grid(h4), model)
+        if mode is not None:
+            scene.mode(x, mode, payload)
     except BaseException:
         scene.close()
         raise
