@@ -361,6 +361,59 @@ def cycle(
 
 
 @app.command()
+def modes(
+    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
+    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    pose: tuple[float, float, float, float] | None = typer.Option(
+        None, metavar="X Y Z THETA", help="pose of D in m and rad (default: all actuators at 45 deg)"),
+    payload: float = typer.Option(0.0, help="point payload at D, kg"),
+    count: int = typer.Option(4, help="how many modes to print"),
+    map_png: Path | None = typer.Option(None, "--map", help="also map the first frequency over x-y (PNG)"),
+    grid: int = typer.Option(21, help="--map: points per side of the x-y grid"),
+    span: float = typer.Option(0.3, help="--map: side of the x-y grid around the centre, m"),
+) -> None:
+    """Natural frequencies of the elastic robot (actuators locked, link inertias from the URDF)."""
+    check_finite("--pose", pose)
+    if not (math.isfinite(payload) and payload >= 0):
+        fail(f"--payload must be a finite mass >= 0 in kg, got {payload:g}")
+    if count < 1:
+        fail(f"--count must be >= 1, got {count}")
+    if map_png is not None:
+        if grid < 2 or not (math.isfinite(span) and span > 0):
+            fail(f"--grid must be >= 2 and --span a length > 0 (m), got {grid} and {span:g}")
+        from h4pin.files import check_output
+
+        check_output(map_png, "--map", suffixes=(".png",))
+    import numpy as np
+
+    from h4pin.elastic import Payload, elastic_model
+    from h4pin.elastic import modes as natural_modes
+    from h4pin.kinematics.closed_form import centre_pose
+
+    h4 = load_robot(variant, urdf)
+    x = centre_pose(h4) if pose is None else np.array(pose, dtype=float)
+    load_ = Payload(payload) if payload > 0 else None
+    res = natural_modes(elastic_model(h4), x, load_)
+    typer.echo(f"natural modes at x y z theta = {' '.join(f'{v:g}' for v in x)} (m, rad), payload {payload:g} kg")
+    typer.echo(f"{'mode':>4}  {'Hz':>8}  plate motion (largest of dD mm, dOmega x 0.1 m)")
+    for k in range(min(count, len(res.frequencies))):
+        tp = res.shapes_tp[k]
+        parts = np.r_[np.abs(tp[:3]), np.abs(tp[3:6]) * 0.1]
+        axis = ("x", "y", "z", "rx", "ry", "rz")[int(np.argmax(parts))]
+        typer.echo(f"{k + 1:>4}  {res.frequencies[k]:8.1f}  mostly {axis}")
+    if map_png is not None:
+        from h4pin.studies import frequency
+
+        c = centre_pose(h4)
+        axis = np.linspace(-span / 2, span / 2, grid)
+        ds = frequency.frequency_map(h4, c[0] + axis, c[1] + axis, float(x[2]), float(x[3]), load_)
+        f = ds.first_frequency.values
+        typer.echo(f"first frequency over the map: {np.nanmin(f):.1f} to {np.nanmax(f):.1f} Hz "
+                   f"({int(np.isfinite(f).sum())} of {f.size} poses reachable and regular)")
+        typer.echo(f"wrote {frequency.plot_map(ds, map_png)}")
+
+
+@app.command()
 def warmup() -> None:
     """Compile the compliance kernels into numba's cache now (else the first calls after an install
     use the numpy path while they compile in the background)."""
