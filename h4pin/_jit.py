@@ -33,6 +33,8 @@ import types
 from collections.abc import Callable
 from typing import Any
 
+from h4pin.files import alive
+
 MODES = ("background", "inline", "off")
 _RECHECK_S = 1.0
 
@@ -177,21 +179,11 @@ def _lock_path() -> str:
     return os.path.join(tempfile.gettempdir(), f"h4pin-warmup-{uid}-{tag}.lock")
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def running() -> bool:
     """Whether a warm-up process is compiling into this process's cache now."""
     try:
         with open(_lock_path()) as fh:
-            return _alive(int(fh.read().strip() or 0))
+            return alive(int(fh.read().strip() or 0))
     except (OSError, ValueError):
         return False
 
@@ -227,7 +219,7 @@ def take_lock(path: str) -> bool:
                     pid = int(fh.read().strip() or 0)
             except (OSError, ValueError):
                 pid = 0
-            if pid and _alive(pid):
+            if pid and alive(pid):
                 return False
             try:
                 os.unlink(path)

@@ -32,7 +32,8 @@ def tmp_prefix(path: Path) -> str:
     return f".{path.name}.{TMP_TAG}-{os.getpid()}-"
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (or exists under another user)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -51,7 +52,7 @@ def clean_stale(path: str | Path) -> list[Path]:
         return removed
     for entry in path.parent.iterdir():
         m = pattern.match(entry.name)
-        if m and not _alive(int(m.group(1))):
+        if m and not alive(int(m.group(1))):
             if entry.is_dir() and not entry.is_symlink():
                 shutil.rmtree(entry, ignore_errors=True)
             else:
