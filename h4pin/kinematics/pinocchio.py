@@ -144,6 +144,18 @@ def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None) -> Kinematics
     return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
 
 
+def frame_id(model: pin.Model, frame: str | int) -> int:
+    """The id of ``frame`` (a name or an id) in ``model``, or a :class:`ParameterError` naming it."""
+    if isinstance(frame, str):
+        if not model.existFrame(frame):
+            raise ParameterError(f"frame: no frame {frame!r} in the model")
+        return model.getFrameId(frame)
+    fid = int(frame)
+    if not 0 <= fid < model.nframes:
+        raise ParameterError(f"frame: id {fid} out of range (the model has {model.nframes} frames)")
+    return fid
+
+
 def as_configuration(h4, q: Any) -> np.ndarray:
     """``q`` as a finite configuration (nq,) of the robot's model, or a :class:`ParameterError`."""
     try:

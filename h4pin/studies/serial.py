@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import ParameterError
+from h4pin.kinematics.pinocchio import frame_id
 
 #: Joint stiffness (N.m/rad) used for the UR5 of example-robot-data in ``scripts/compare_serial.py``,
 #: joints 1-6 (shoulder pan, shoulder lift, elbow, wrist 1-3). ASSUMED values, of the order of
@@ -75,17 +76,6 @@ class SerialCompliance:
         return self.matrix @ np.r_[f, t]
 
 
-def _frame_id(model: pin.Model, frame: str | int) -> int:
-    if isinstance(frame, str):
-        if not model.existFrame(frame):
-            raise ParameterError(f"frame: no frame {frame!r} in the model")
-        return model.getFrameId(frame)
-    fid = int(frame)
-    if not 0 <= fid < model.nframes:
-        raise ParameterError(f"frame: id {fid} out of range (the model has {model.nframes} frames)")
-    return fid
-
-
 def _stiffness(model: pin.Model, joint_stiffness) -> np.ndarray:
     """(nv,) stiffness from an array (one per velocity) or a {joint name: k} mapping."""
     if isinstance(joint_stiffness, dict):
@@ -123,7 +113,7 @@ def serial_compliance(model: pin.Model, data: pin.Data, q, frame: str | int, joi
     Raises:
         ParameterError: unknown frame, wrong ``q`` size, missing or non-positive stiffness.
     """
-    fid = _frame_id(model, frame)
+    fid = frame_id(model, frame)
     q = np.asarray(q, float)
     if q.shape != (model.nq,):
         raise ParameterError(f"q: expected shape ({model.nq},), got {q.shape}")
