@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The H4 variants as robot_descriptions-style description modules.
 
-One module per shipped variant, ``h4pin.descriptions.h4_<variant>_description`` (see
+One module per shipped variant, ``h4_<variant>_description`` in :mod:`h4pin.descriptions` (see
 :data:`MODULES`), with the attributes robot_descriptions' modules have: ``PACKAGE_PATH``,
 ``REPOSITORY_PATH``, ``URDF_PATH``, ``SRDF_PATH`` and ``MJCF_PATH`` (strings). They point at the
 files shipped with the running h4pin: inside the installed package (``h4pin/urdf``,
