@@ -155,6 +155,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs per row")
     parser.add_argument("--tolerance", action="store_true", help="also time the tolerance study (10 000 x 100)")
     parser.add_argument("--big", action="store_true", help="also stream 1e7 poses through the kernel")
+    parser.add_argument("--atlas-stream", action="store_true",
+                        help="also stream a 1e7-pose atlas to zarr (run it alone for its peak RSS)")
     parser.add_argument("--dask", action="store_true", help="also measure the Dask overhead per task")
     parser.add_argument("--sweep", action="store_true", help="also time 10 000 designs x 1 000 poses")
     parser.add_argument("--designs", type=int, default=10_000, help="designs in the sweep row")
@@ -240,6 +242,8 @@ def main() -> None:
     print(f"  (numba threads available: {numba.config.NUMBA_NUM_THREADS}, threading layer: "
           f"{numba.threading_layer()})")
 
+    if args.atlas_stream:
+        atlas_stream_row()
     if args.big:
         n = 10_000_000
         secs, rss, worst = big_stream(h4, n, kernel.CHUNK)
@@ -258,6 +262,16 @@ def main() -> None:
                                   ("2 Dask workers", {"threads": 1, "workers": 2})):
                 secs, evals = sweep.bench(args.designs, **kwargs)
                 print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
+            print("\nsweep per-design overhead (sweep.evaluate minus the kernel calls alone; target <= 20 % of the "
+                  "kernel's time for the 1000 task poses)")
+            rows = {"1 thread": [sweep_overhead()]}
+            with sweep._client(2, None) as client:
+                rows["2 Dask workers, each"] = list(client.run(sweep_overhead).values())
+            for label, results in rows.items():
+                for ev, k_all, k_task in results:
+                    over = ev - k_all
+                    print(f"  {label:<22} evaluate {ev * 1e3:.3f} ms/design, kernel {k_all * 1e3:.3f} ms (2728 poses), "
+                          f"{k_task * 1e3:.3f} ms (1000 poses): overhead {over * 1e3:.3f} ms = {over / k_task:.0%}")
     if args.tolerance:
         bench_tolerance()
 
@@ -333,6 +347,54 @@ def atlas_row(h4: h4pin.H4, repeat: int) -> float:
     atlas.atlas(h4, xs[:10], xs[:10], [c[2]], progress=False)
     zs = [c[2] - 0.05, c[2], c[2] + 0.05]
     return best_of(repeat, lambda: atlas.atlas(h4, xs, xs, zs, progress=False)) / (500 * 500 * 3)
+
+
+def sweep_overhead(n_designs: int = 256, repeat: int = 5) -> tuple[float, float, float]:
+    """Seconds per design, one numba thread, best of ``repeat`` (alternating): the whole
+    :func:`h4pin.studies.sweep.evaluate`, the kernel calls alone over the task and the volume
+    grid (2728 poses), and over the 1000 task poses only."""
+    numba.set_num_threads(1)
+    from h4pin.studies import sweep
+
+    spec = sweep.Spec(n_designs=n_designs, chunk=64)
+    rows = sweep.designs(spec)
+    kerns = [k for k in sweep._kernels(rows) if k is not None]
+    poses = np.ascontiguousarray(np.concatenate([spec.task.poses(), spec.volume.poses()]))
+    buf = kernel._empty(len(poses), False, False)
+    sweep.evaluate(rows[:4], spec, 1)
+    ev, k_all, k_task = [], [], []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        sweep.evaluate(rows, spec, 1)
+        ev.append((time.perf_counter() - t) / len(kerns))
+        t = time.perf_counter()
+        for k in kerns:
+            kernel.compliance_batch(k, poses, spec.model, buf)
+        k_all.append((time.perf_counter() - t) / len(kerns))
+        t = time.perf_counter()
+        for k in kerns:
+            kernel.compliance_batch(k, poses[:1000], spec.model)
+        k_task.append((time.perf_counter() - t) / len(kerns))
+    return min(ev), min(k_all), min(k_task)
+
+
+def atlas_stream_row(n_side: int = 1000, n_z: int = 10) -> None:
+    """Stream an atlas of n_side^2 x n_z poses into a temporary .zarr store (h4pin.studies.atlas.stream):
+    seconds per pose and the peak RSS of this process (the target is < 400 MB for 1e7 poses)."""
+    import tempfile
+    from pathlib import Path
+
+    from h4pin.studies import atlas
+
+    h4 = h4pin.load()
+    xs = np.linspace(-0.35, 0.35, n_side)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        atlas.stream(h4, xs, xs, np.linspace(-0.8, -0.4, n_z), out=Path(tmp) / "a.zarr", progress=False)
+        secs = time.perf_counter() - t0
+    n = n_side * n_side * n_z
+    print(f"\natlas streamed to zarr: {n:.0e} poses in {secs:.1f} s ({secs / n * 1e6:.2f} us/pose, "
+          f"{numba.get_num_threads()} threads), peak RSS of this process {peak_rss_mb():.0f} MB")
 
 
 def bench_tolerance(n_robots: int = 10_000, n_poses: int = 100) -> None:

@@ -142,3 +142,190 @@ def test_a_toleranced_robot_goes_through_the_numpy_path(grid):
     np.testing.assert_allclose(res.compliance_max.values[ok], lam[:, 2], rtol=1e-12)
     k = statics.compliance_matrix(tol.geometry, poses[np.flatnonzero(ok)[0]])
     assert abs(res.stiffness_z.values[ok][0] * k[2, 2] - 1.0) < 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled derived quantities (h4pin.studies._derived) and the streamed atlas.
+
+
+def _exact_roots(coefficients, estimates):
+    """Roots of the polynomial sum c_k x^(n-k) (exact Fractions) near each estimate, by bisection
+    in 90-digit decimals on [estimate / 2, 2 estimate]."""
+    from decimal import Decimal, localcontext
+
+    with localcontext() as ctx:
+        ctx.prec = 90
+        c = [Decimal(f.numerator) / Decimal(f.denominator) for f in coefficients]
+
+        def p(x):
+            acc = Decimal(0)
+            for ck in c:
+                acc = acc * x + ck
+            return acc
+
+        roots = []
+        for est in estimates:
+            lo, hi = Decimal(float(est)) / 2, Decimal(float(est)) * 2
+            flo = p(lo)
+            assert flo * p(hi) < 0, "the estimate does not bracket a root"
+            for _ in range(320):
+                mid = (lo + hi) / 2
+                if (p(mid) < 0) == (flo < 0):
+                    lo = mid
+                else:
+                    hi = mid
+            roots.append(float((lo + hi) / 2))
+    return roots
+
+
+def _exact(a):
+    """The entries of the float matrix a as exact Fractions."""
+    from fractions import Fraction
+
+    return [[Fraction(float(v)) for v in row] for row in np.asarray(a)]
+
+
+def _charpoly(m):
+    """Characteristic polynomial of the square matrix m of Fractions (exact, Faddeev-LeVerrier)."""
+    from fractions import Fraction
+
+    n = len(m)
+    mk = [[Fraction(0)] * n for _ in range(n)]
+    c = [Fraction(1)]
+    for k in range(1, n + 1):
+        mk = [[sum(m[i][l] * mk[l][j] for l in range(n)) + (c[-1] if i == j else 0) for j in range(n)]
+              for i in range(n)]
+        c.append(-sum(sum(m[i][l] * mk[l][i] for l in range(n)) for i in range(n)) / k)
+    return c
+
+
+def _rotation(rng, n):
+    q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    return q
+
+
+def _sym3(a):
+    return atlas._derived.sym3_eigvals(a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2])
+
+
+def test_sym3_eigenvalues_equal_eigvalsh_and_the_exact_ones():
+    """Jacobi eigenvalues of symmetric 3x3: to 1e-10 relative of numpy's eigvalsh when the matrix
+    is well conditioned or nearly degenerate (exactly repeated eigenvalues included). Against the
+    exact eigenvalues (90-digit roots of the exact characteristic polynomial) of positive definite
+    matrices of condition up to 1e8: the largest to 1e-14 relative, the others to 1e-15 of the
+    largest (as eigvalsh), and every one to 1e-12 relative when the matrix is graded."""
+    rng = np.random.default_rng(7)
+    cases = [np.diag([3.0, 1.0, 2.0]), np.eye(3) * 2.5, np.diag([1.0, 1.0, 4.0]), np.zeros((3, 3))]
+    for _ in range(300):
+        q = _rotation(rng, 3)
+        for lam in (rng.uniform(-1, 1, 3), np.array([1.0, 1.0 + 1e-9 * rng.normal(), 2.0]),
+                    1.0 + 1e-13 * rng.normal(size=3), np.array([2.0, 2.0, -1.0])):
+            cases.append((q * lam) @ q.T)
+    for a in cases:
+        a = (a + a.T) / 2
+        ref = np.linalg.eigvalsh(a)
+        got = np.array(_sym3(a))
+        np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-15 * np.abs(ref).max())
+    for cond in (1e4, 1e6, 1e8):
+        for _ in range(5):
+            q = _rotation(rng, 3)
+            a = (q * np.array([1.0, 1.0 / np.sqrt(cond), 1.0 / cond])) @ q.T * 1e-6  # m/N-like scale
+            a = (a + a.T) / 2
+            got = np.array(_sym3(a))
+            exact = np.array(_exact_roots(_charpoly(_exact(a)), np.linalg.eigvalsh(a)))
+            assert abs(got[-1] / exact[-1] - 1) < 1e-14
+            np.testing.assert_allclose(got, exact, rtol=0, atol=1e-15 * exact[-1])  # as eigvalsh: eps * |K|
+            # graded: ill-conditioned by the scales of its rows and columns; Jacobi keeps every
+            # eigenvalue to 1e-12 relative (Demmel and Veselic)
+            d = np.geomspace(1.0, 1.0 / np.sqrt(cond), 3)[rng.permutation(3)]
+            b = (q * rng.uniform(1, 2, 3)) @ q.T
+            g = d[:, None] * ((b + b.T) / 2) * d[None, :]
+            exact = _exact_roots(_charpoly(_exact(g)), np.linalg.eigvalsh(g))
+            np.testing.assert_allclose(_sym3(g), exact, rtol=1e-12)
+
+
+def _exact_cond(a):
+    """2-norm condition number of the 4x4 a: the exact eigenvalues of a^T a (Fractions)."""
+    f = _exact(a)
+    gram = [[sum(f[k][i] * f[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+    lam = np.linalg.svd(a, compute_uv=False) ** 2
+    hi, lo = _exact_roots(_charpoly(gram), [lam[0], lam[-1]])
+    return float(np.sqrt(hi / lo))
+
+
+def test_cond4_equals_numpy_and_the_exact_condition_number():
+    """One-sided Jacobi cond of 4x4: within 1e-9 relative of np.linalg.cond up to cond 1e6; at
+    cond 1e8 both are only good to about eps * cond of the exact value (the 4x4 in floats), so
+    there it is held to the exact one: 1e-8 for any matrix, 1e-13 for one ill-conditioned by its
+    rows' scales (as J of eq. 8, m/rad and rad/rad) -- numpy's is 1e-8 there too."""
+    cond4 = atlas._derived.cond4
+    rng = np.random.default_rng(11)
+    for c in (1.0, 1e2, 1e4, 1e6):
+        for _ in range(50):
+            a = (_rotation(rng, 4) * np.geomspace(1, 1 / c, 4)) @ _rotation(rng, 4) * 10 ** rng.uniform(-3, 3)
+            assert cond4(a) == pytest.approx(np.linalg.cond(a), rel=1e-9)
+    numpy_worst = 0.0
+    for _ in range(10):
+        a = (_rotation(rng, 4) * np.geomspace(1, 1e-8, 4)) @ _rotation(rng, 4)
+        exact = _exact_cond(a)
+        assert cond4(a) == pytest.approx(exact, rel=1e-8)
+        graded = np.diag(np.geomspace(1, 1e-8, 4)[rng.permutation(4)]) @ (
+            (_rotation(rng, 4) * rng.uniform(1, 3, 4)) @ _rotation(rng, 4))
+        exact = _exact_cond(graded)
+        assert cond4(graded) == pytest.approx(exact, rel=1e-13)
+        numpy_worst = max(numpy_worst, abs(np.linalg.cond(graded) / exact - 1))
+    assert numpy_worst > 1e-12  # the exact route is needed: numpy's own error is larger than 1e-13
+    assert cond4(np.diag([1.0, 2.0, 3.0, 0.0])) == np.inf
+    assert np.isnan(cond4(np.full((4, 4), np.nan)))
+    np.testing.assert_allclose(atlas._derived.singular_values4(a), np.linalg.svd(a, compute_uv=False), rtol=0,
+                               atol=1e-15)
+
+
+def test_streamed_atlas_equals_the_one_in_memory(proto, grid, ds, tmp_path):
+    """A .zarr atlas streamed block by block (blocks of whole rows, or pieces of a row when a row
+    is longer than a chunk) equals the atlas in memory, is opened lazily, leaves no partial store."""
+    for chunk in (50, 4):  # 50: 5 rows of 9 per block; 4: pieces of rows (4 + 4 + 1 poses)
+        path = tmp_path / f"s{chunk}.zarr"
+        got = atlas.atlas(proto, **grid, model="consistent", chunk=chunk, progress=False, out=path)
+        assert got.chunks["y"][0] == (5 if chunk == 50 else 1) and got.chunks["x"][0] == min(9, chunk)
+        assert type(got.compliance_max.data).__module__.startswith("dask")
+        assert got.equals(ds) and atlas.open_atlas(path).equals(ds)
+        assert got.attrs == ds.attrs and got.status.attrs["flag_meanings"] == ds.status.attrs["flag_meanings"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s4.zarr", "s50.zarr"]
+    files = [p for p in (tmp_path / "s4.zarr").rglob("*") if p.is_file()]
+    assert all(stat.S_IMODE(p.stat().st_mode) == 0o644 for p in files)
+
+
+def test_a_killed_stream_resumes_from_its_blocks(proto, grid, ds, tmp_path, monkeypatch):
+    """Killed after 3 blocks (an exception in the 4th), a streamed atlas leaves its partial store
+    and no target; the next run computes only the blocks not done and gives the same atlas; a run
+    with another grid at the same path starts the partial store anew."""
+    path = tmp_path / "k.zarr"
+    real = atlas._derived.atlas_fields
+    calls = []
+
+    def killed_at_4(*args):
+        calls.append(len(args[2]))
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setattr(atlas._derived, "atlas_fields", killed_at_4)
+    with pytest.raises(KeyboardInterrupt):
+        atlas.stream(proto, **grid, model="consistent", chunk=18, progress=False, out=path)
+    assert not path.exists() and atlas.partial_path(path).is_dir()
+    n_blocks = 2 * 2 * 4  # theta x z x ceil(7 rows / 2 rows per block)
+    calls.clear()
+    monkeypatch.setattr(atlas._derived, "atlas_fields", lambda *a: (calls.append(len(a[2])), real(*a)))
+    got = atlas.stream(proto, **grid, model="consistent", chunk=18, progress=False, out=path)
+    assert len(calls) == n_blocks - 3 and sum(calls) == ds.status.size - 3 * 18
+    assert got.equals(ds) and not atlas.partial_path(path).exists()
+    with pytest.raises(KeyboardInterrupt):  # another grid, killed: its partial store is left
+        calls.clear()
+        monkeypatch.setattr(atlas._derived, "atlas_fields", killed_at_4)
+        atlas.stream(proto, **grid, model="paper", chunk=18, progress=False, out=path)
+    monkeypatch.setattr(atlas._derived, "atlas_fields", real)
+    small = {**grid, "x": grid["x"][:3]}
+    got = atlas.stream(proto, **small, model="consistent", chunk=18, progress=False, out=path)
+    assert got.equals(ds.isel(x=slice(0, 3)))  # the paper-model partial store was not resumed
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.zarr"]

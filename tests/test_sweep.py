@@ -126,3 +126,38 @@ def test_cli_sweep(tmp_path):
     res = sweep.load(tmp_path / "c.zarr")
     assert f"2 of 2 chunks done; {res['valid'].sum()} valid designs" in out.stdout
     assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
+def test_packed_kernels_equal_the_canonical_route():
+    """sweep._kernels packs many designs at once: the same validity as params_of (ParameterError)
+    and the same packed vectors as kernel.prepare(geometry_from_params(params_of(row))), over
+    the default bounds and wider ones where about a quarter of the designs are invalid."""
+    from h4pin.stiffness import kernel
+
+    wide = {**sweep.BOUNDS, "half_width": (0.005, 0.09), "r": (0.1, 0.45), "l": (0.2, 0.8), "layout": (0.5, 1.6),
+            "plate": (0.5, 2.0)}
+    n_invalid = 0
+    for bounds in (sweep.BOUNDS, wide):
+        rows = sweep.designs(sweep.Spec(n_designs=600, seed=5, bounds=bounds))
+        for row, kern in zip(rows, sweep._kernels(rows), strict=True):
+            try:
+                ref = kernel.prepare(geometry_from_params(sweep.params_of(row)))
+            except ParameterError:
+                assert kern is None
+                n_invalid += 1
+                continue
+            np.testing.assert_allclose(kern.packed, ref.packed, rtol=1e-15, atol=0)
+    assert 50 < n_invalid < 600
+
+
+def test_designs_are_generated_once(tmp_path, monkeypatch):
+    """The design table is made once, with the store; chunks (and a resumed run) read it."""
+    calls = []
+    real = sweep.designs
+    monkeypatch.setattr(sweep, "designs", lambda spec: (calls.append(spec), real(spec))[1])
+    path = tmp_path / "once.zarr"
+    sweep.run(path, SPEC, stop_after=1, progress=False)
+    assert len(calls) == 1
+    res = sweep.run(path, SPEC, progress=False)
+    assert len(calls) == 1 and res["done"].all()
+    np.testing.assert_array_equal(res["designs"], real(SPEC))

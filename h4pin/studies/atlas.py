@@ -21,6 +21,7 @@ See ``docs/atlas.md``.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import tempfile
@@ -41,6 +42,7 @@ from h4pin.description.params import H4Params  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
 from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
 from h4pin.stiffness import kernel  # noqa: E402
+from h4pin.studies import _derived  # noqa: E402
 
 #: The quantities of an atlas, with their units and a description.
 QUANTITIES = dict(
@@ -99,8 +101,64 @@ def _robot_chunks(h4: Any, chunks: Any, model: str) -> Any:
         start += len(x)
 
 
+def _layout(shape: tuple[int, int, int, int], chunk: int) -> tuple[tuple[int, int, int, int], tuple[int, ...]]:
+    """The blocks of an atlas of ``shape`` (theta, z, y, x): each block is ``(1, 1, ry, cx)``
+    poses -- whole rows of x when a row fits in ``chunk`` poses, else pieces of ``chunk`` poses
+    of one row -- and is both one kernel call and one zarr chunk. Returns the block shape and
+    the number of blocks along each dimension."""
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise ParameterError(f"chunk must be an integer >= 1, got {chunk!r}")
+    ny, nx = shape[2], shape[3]
+    cx = min(nx, int(chunk))
+    ry = max(1, min(ny, int(chunk) // cx))
+    block = (1, 1, ry, cx)
+    return block, tuple(-(-s // b) for s, b in zip(shape, block, strict=True))
+
+
+def _regions(axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...], todo: Any) -> Any:
+    """``(index, region, poses)`` of the blocks ``todo`` (flat indices over ``grid``): the
+    region as (theta, z, y slice, x slice) and the poses (m, 4) [x, y, z, theta] in C order."""
+    x, y, z, th = axes["x"], axes["y"], axes["z"], axes["theta"]
+    for b in todo:
+        t, k, j, i = np.unravel_index(b, grid)
+        ys = slice(j * block[2], min(len(y), (j + 1) * block[2]))
+        xs = slice(i * block[3], min(len(x), (i + 1) * block[3]))
+        yy, xx = np.meshgrid(y[ys], x[xs], indexing="ij")
+        poses = np.empty((xx.size, 4))
+        poses[:, 0], poses[:, 1], poses[:, 2], poses[:, 3] = xx.ravel(), yy.ravel(), z[k], th[t]
+        yield int(b), (int(t), int(k), ys, xs), poses
+
+
+def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: Any) -> None:
+    """Run the kernel (or the numpy path of a robot) over ``regions`` (:func:`_regions`) and call
+    ``write(index, region, fields)`` per block, ``fields`` the quantities of :data:`QUANTITIES`
+    and ``status`` as flat arrays (reused from one block to the next)."""
+    blocks: list = []
+
+    def poses():
+        for item in regions:
+            blocks.append(item)
+            yield item[2]
+
+    results = (kernel.iter_compliance(kern, poses(), model, chunk=chunk, jacobian=True)
+               if isinstance(kern, kernel.Kernel) else _robot_chunks(kern, poses(), model))
+    buf = {q: np.empty(0) for q in ("compliance_max", "isotropy", "stiffness_z", "cond_J")}
+    for _, res in results:
+        b, region, _ = blocks.pop(0)
+        m = len(res.status)
+        if len(buf["cond_J"]) < m:
+            buf = {q: np.empty(m) for q in buf}
+        f = {q: v[:m] for q, v in buf.items()}
+        _derived.atlas_fields(np.ascontiguousarray(res.K), np.ascontiguousarray(res.J), res.status,
+                              f["compliance_max"], f["isotropy"], f["stiffness_z"], f["cond_J"])
+        f["cond_M1"] = res.condition
+        f["status"] = res.status
+        write(b, region, f)
+        bar.update(m)
+
+
 def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
-          chunk: int = kernel.CHUNK, progress: bool = True) -> xr.Dataset:
+          chunk: int = kernel.CHUNK, progress: bool = True, out: str | Path | None = None) -> xr.Dataset:
     """The atlas over the grid ``theta x z x y x`` (1-D coordinates in m and rad).
 
     Args:
@@ -109,56 +167,217 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             geometry object or a :class:`h4pin.stiffness.kernel.Kernel`.
         x, y, z, theta: Grid coordinates (scalars or 1-D), m and rad.
         model: ``"paper"`` or ``"consistent"`` (eq. 30; K_tt is the same in both).
-        chunk: Poses per kernel call (memory stays at one chunk).
+        chunk: Poses per kernel call (at most; a block is whole rows of x, :func:`_layout`).
         progress: Show a tqdm progress bar.
+        out: Also write the atlas there. A ``.zarr`` path streams: each block goes to the store
+            as soon as it is computed, memory stays at one block whatever the grid, a killed run
+            resumes from the blocks it finished (:func:`stream`), and the returned Dataset is
+            the store opened lazily (dask arrays). A ``.nc`` path is computed in memory and
+            saved (:func:`save`).
 
     Returns:
-        An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` and ``status``.
+        An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` and ``status``, dims
+        ``(theta, z, y, x)``.
     """
+    if out is not None and Path(out).suffix == ".zarr":
+        return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress)
+    if out is not None:
+        check_out(out)
     kern, name = _geometry(source)
-    axes = {"theta": _axis("theta", theta), "z": _axis("z", z), "y": _axis("y", y), "x": _axis("x", x)}
+    axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
-    n = int(np.prod(shape))
-    check_memory(n)
-    out = {q: np.full(n, np.nan) for q in QUANTITIES}
-    status = np.empty(n, dtype=np.int8)
+    block, grid = _layout(shape, chunk)
+    check_memory(int(np.prod(shape)))
+    data = {q: np.full(shape, np.nan) for q in QUANTITIES}
+    data["status"] = np.empty(shape, dtype=np.int8)
 
-    def chunks():
-        for start in range(0, n, chunk):
-            idx = np.unravel_index(np.arange(start, min(n, start + chunk)), shape)
-            yield np.stack([axes["x"][idx[3]], axes["y"][idx[2]], axes["z"][idx[1]], axes["theta"][idx[0]]], axis=1)
+    def write(b, region, fields):
+        t, k, ys, xs = region
+        for q, v in data.items():
+            v[t, k, ys, xs] = fields[q].reshape(ys.stop - ys.start, xs.stop - xs.start)
 
-    with tqdm(total=n, desc="atlas", unit="pose", disable=not progress) as bar:
-        results = (kernel.iter_compliance(kern, chunks(), model, chunk=chunk, jacobian=True)
-                   if isinstance(kern, kernel.Kernel) else _robot_chunks(kern, chunks(), model))
-        for start, res in results:
-            m = len(res.status)
-            sl = slice(start, start + m)
-            status[sl] = res.status
-            out["cond_M1"][sl] = res.condition
-            ok = res.status == verdicts.OK
-            if np.any(ok):
-                idx = np.flatnonzero(ok) + start
-                ktt = res.K[ok, :3, :3]
-                lam = np.linalg.eigvalsh(0.5 * (ktt + np.swapaxes(ktt, 1, 2)))
-                out["compliance_max"][idx] = lam[:, 2]
-                out["isotropy"][idx] = lam[:, 0] / lam[:, 2]
-                out["stiffness_z"][idx] = 1.0 / res.K[ok, 2, 2]
-                out["cond_J"][idx] = np.linalg.cond(res.J[ok])
-            bar.update(m)
+    with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress) as bar:
+        _compute(kern, _regions(axes, block, grid, range(int(np.prod(grid)))), model, chunk, write, bar)
+    ds = _dataset(axes, data, model, name)
+    if out is not None:
+        save(ds, out)
+    return ds
+
+
+def _axes(x: Any, y: Any, z: Any, theta: Any) -> dict[str, np.ndarray]:
+    return {"theta": _axis("theta", theta), "z": _axis("z", z), "y": _axis("y", y), "x": _axis("x", x)}
+
+
+def _dataset(axes: dict[str, np.ndarray], data: dict[str, Any], model: str, name: str) -> xr.Dataset:
+    """The atlas Dataset of the arrays ``data`` (numpy, or dask for a store's template)."""
     dims = tuple(axes)
-    data = {q: (dims, v.reshape(shape), {"units": QUANTITIES[q][0], "long_name": QUANTITIES[q][1]})
-            for q, v in out.items()}
-    data["status"] = (dims, status.reshape(shape), {
+    out = {q: (dims, data[q], {"units": QUANTITIES[q][0], "long_name": QUANTITIES[q][1]}) for q in QUANTITIES}
+    out["status"] = (dims, data["status"], {
         "units": "1", "long_name": "verdict (h4pin.verdicts)",
         "flag_values": np.arange(len(verdicts.STATUS_NAMES), dtype=np.int8),
         "flag_meanings": " ".join(s.replace(" ", "_") for s in verdicts.STATUS_NAMES)})
     coords = {k: (k, v, {"units": "rad" if k == "theta" else "m"}) for k, v in axes.items()}
-    return xr.Dataset(data, coords=coords, attrs={
+    return xr.Dataset(out, coords=coords, attrs={
         "title": "H4 workspace atlas", "h4pin": "atlas", "model": model, "source": name,
         "reference": "Company, Pierrot, Fauroux, ICRA 2005, eq. 30 (compliance), eq. 8 (J), eq. 6 (M1)",
         "pose": "D = (x, y, z), central bar rotated by theta about z",
     })
+
+
+#: Name of the store an atlas streams into, beside its target: ``.NAME.h4pin-partial``. It is
+#: renamed to the target once every block is in; a killed run leaves it for the next run.
+PARTIAL_TAG = "h4pin-partial"
+#: The array of the partial store that flags finished blocks (removed before the rename).
+_DONE = "h4pin_done"
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where :func:`stream` writes the atlas ``path`` until it is whole."""
+    path = Path(path)
+    return path.parent / f".{path.name}.{PARTIAL_TAG}"
+
+
+def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tuple[int, ...]) -> str:
+    """What fixes the numbers of a streamed atlas: the robot (packed kernel geometry, or the URDF
+    and elements of a robot on the numpy path), the grid, the model and the blocks."""
+    h = hashlib.sha256()
+    if isinstance(kern, kernel.Kernel):
+        h.update(np.ascontiguousarray(kern.packed).tobytes())
+    else:
+        h.update(str(getattr(kern, "urdf", "")).encode())
+        h.update(repr(getattr(kern, "elements", "")).encode())
+    for k, v in axes.items():
+        h.update(k.encode() + np.ascontiguousarray(v, dtype="<f8").tobytes())
+    h.update(f"{model} {block}".encode())
+    return h.hexdigest()
+
+
+def _lock(folder: Path) -> int | None:
+    """An exclusive lock on ``folder`` (released when the process ends, however it ends), or
+    None when another process holds it."""
+    import fcntl
+
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> tuple[Any, int]:
+    """The partial store of ``path`` (locked): resumed if it holds this atlas (same
+    :func:`_fingerprint`), else made anew -- in a temporary folder, moved into place whole."""
+    import zarr
+
+    partial = partial_path(path)
+    for _ in range(3):
+        if not partial.exists():
+            tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
+            try:
+                store = tmp / "store"
+                template.to_zarr(store, mode="w", consolidated=False, compute=False)
+                group = zarr.open_group(str(store), mode="a")
+                create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
+                done = create(_DONE, shape=(n_blocks,), chunks=(n_blocks,), dtype="bool", fill_value=False)
+                done.attrs["key"] = key
+                try:
+                    os.replace(store, partial)  # atomic: the partial store appears whole
+                except OSError:  # another run made it meanwhile
+                    pass
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+        fd = _lock(partial)
+        if fd is None:
+            raise ParameterError(f"out: another h4pin atlas is writing {path} (its partial store {partial} is "
+                                 "locked); wait for it or give another path")
+        group = zarr.open_group(str(partial), mode="a")
+        try:
+            same = group[_DONE].attrs.get("key") == key
+        except KeyError:
+            same = False
+        if same:
+            return group, fd
+        shutil.rmtree(partial, ignore_errors=True)  # another atlas's (or a damaged) partial store
+        os.close(fd)
+    raise ParameterError(f"out: cannot make the partial store {partial}")
+
+
+def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
+           out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True) -> xr.Dataset:
+    """The atlas of :func:`atlas`, streamed into the zarr store ``out`` with memory constant in
+    the number of poses (one block of at most ``chunk`` poses, about 700 bytes a pose).
+
+    The store's arrays are made first, with their final (theta, z, y, x) shape, in a partial
+    store beside ``out`` (``.NAME.h4pin-partial``, :func:`partial_path`); each block (whole rows
+    of x, one zarr chunk) is written there as it is computed, then flagged done. When every
+    block is in, the flags are removed and the partial store is renamed to ``out`` (replacing an
+    atlas there). A killed run leaves the partial store: the next run with the same robot,
+    grid, model and ``chunk`` resumes from the blocks done; any other run restarts it. ``out``
+    itself is never half-written. One run at a time per ``out`` (a lock on the partial store).
+
+    Returns:
+        The store at ``out``, opened lazily (:func:`xarray.open_zarr`).
+    """
+    require("zarr", extra="studies", what="writing .zarr atlases")
+    import dask.array as da
+
+    path = check_out(out, "out")
+    if path.suffix != ".zarr":
+        raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
+    kern, name = _geometry(source)
+    kernel._model_code(model)
+    axes = _axes(x, y, z, theta)
+    shape = tuple(len(v) for v in axes.values())
+    block, grid = _layout(shape, chunk)
+    n_blocks = int(np.prod(grid))
+    lazy = {q: da.full(shape, np.nan, chunks=block) for q in QUANTITIES}
+    lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
+    template = _dataset(axes, lazy, model, name)
+    clean_stale(path)
+    group, fd = _open_partial(path, template, _fingerprint(kern, axes, model, block), n_blocks)
+    try:
+        done = group[_DONE]
+        flags = done[:]
+        todo = np.flatnonzero(~flags)
+        arrays = {q: group[q] for q in (*QUANTITIES, "status")}
+
+        def write(b, region, fields):
+            t, k, ys, xs = region
+            rows = (ys.stop - ys.start, xs.stop - xs.start)
+            for q, arr in arrays.items():
+                arr[t, k, ys, xs] = fields[q].reshape(rows)
+            flags[b] = True
+            done[:] = flags  # after the block's values: a block killed half-way is computed again
+
+        with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress,
+                  initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
+            _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar)
+        partial = partial_path(path)
+        shutil.rmtree(partial / _DONE)
+        make_readable(partial)
+        tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
+        try:
+            if path.exists():
+                os.replace(path, tmp / "old")
+            os.replace(partial, path)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    finally:
+        os.close(fd)
+    return xr.open_zarr(path, consolidated=False)
+
+
+def _poses_in(todo: np.ndarray, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...]) -> int:
+    """Number of poses in the blocks ``todo``."""
+    if len(todo) == 0:
+        return 0
+    _, _, j, i = np.unravel_index(todo, grid)
+    ny, nx = len(axes["y"]), len(axes["x"])
+    rows = np.minimum(ny, (j + 1) * block[2]) - j * block[2]
+    cols = np.minimum(nx, (i + 1) * block[3]) - i * block[3]
+    return int(np.sum(rows * cols))
 
 
 #: Bytes an atlas holds per pose: five float64 quantities and the int8 verdict, twice (the arrays
@@ -244,7 +463,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
     """One PNG per quantity (and one of the verdict) in ``folder``: ``{prefix}{quantity}.png``.
 
     Each figure has one panel per (theta, z) slice (at most ``max_panels``, evenly chosen), the
-    quantity as a colour map in display units (1st to 99th percentile: compliance grows without
+    quantity as a colour map in display units (1st to 99th percentile of the panels shown: compliance grows without
     bound near singularities), and the workspace boundary (status 0) in black.
     """
     from matplotlib.colors import LogNorm
@@ -257,18 +476,20 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
     if len(slices) > max_panels:
         slices = [slices[i] for i in np.linspace(0, len(slices) - 1, max_panels).round().astype(int)]
     x, y = ds.x.values * 1e3, ds.y.values * 1e3
+    # Only the panels' slices are read (a streamed atlas is a lazily opened store).
+    status = {s: ds.status.isel(theta=s[0], z=s[1]).values for s in slices}
     written = []
     for q in (*QUANTITIES, "status"):
         fig = Figure(figsize=(4.2 * len(slices) + 1.0, 4.0), layout="constrained")
         axs = fig.subplots(1, len(slices), squeeze=False)[0]
         if q == "status":
             factor, unit, log = 1.0, "", False
-            values = ds.status.values.astype(float)
+            values = {s: v.astype(float) for s, v in status.items()}
             vmin, vmax = -0.5, 4.5
         else:
             factor, unit, log = _DISPLAY[q]
-            values = ds[q].values * factor
-            finite = values[np.isfinite(values)]
+            values = {s: ds[q].isel(theta=s[0], z=s[1]).values * factor for s in slices}
+            finite = np.concatenate([v[np.isfinite(v)] for v in values.values()])
             # Near a singularity the compliance grows without bound: colour the 1st-99th percentiles.
             vmin, vmax = (float(v) for v in np.percentile(finite, [1, 99])) if finite.size else (0.0, 1.0)
         mesh = None
@@ -277,7 +498,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
             norm = LogNorm(vmin, vmax) if log and vmin > 0 else None
             mesh = ax.pcolormesh(x, y, v, shading="nearest", cmap="viridis", norm=norm,
                                  **({} if norm else {"vmin": vmin, "vmax": vmax}))
-            reach = (ds.status.values[t, zi] == verdicts.OK).astype(float)
+            reach = (status[t, zi] == verdicts.OK).astype(float)
             if 0 < reach.sum() < reach.size and len(x) > 1 and len(y) > 1:
                 ax.contour(x, y, reach, levels=[0.5], colors="k", linewidths=1.2)
             ax.set_title(f"z = {ds.z.values[zi] * 1e3:.0f} mm, theta = {ds.theta.values[t]:.2f} rad", fontsize=9)
