@@ -2,10 +2,11 @@
 """Compile h4pin's numba functions into numba's on-disk cache now, instead of at first use.
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
-first need: the Pinocchio configuration (``h4pin.load``), the one-pose kernel, the Pinocchio path
-and the batch kernel. After it, every call starts compiled. h4pin starts this module by itself in
-the background the first time a call needs code that is not compiled yet (:mod:`h4pin._jit`);
-run it yourself where a first call must be fast, e.g. after ``pip install`` in a Dockerfile.
+first need: the Pinocchio configuration (``h4pin.load``), the one-pose kernel, the Pinocchio path,
+the batch kernels and the atlas and sweep reductions. After it, every call starts compiled.
+h4pin starts this module by itself in the background the first time a call needs code that is
+not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
+``pip install`` in a Dockerfile.
 """
 
 from __future__ import annotations
@@ -38,7 +39,17 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
             ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
             ("small-batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
-            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (SERIAL_BELOW, 1)), method="kernel"))]
+            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (SERIAL_BELOW, 1)), method="kernel")),
+            ("atlas and sweep fields", _study_fields)]
+
+
+def _study_fields() -> None:
+    """The compiled reductions of the atlas and the sweep (:mod:`h4pin.studies._derived`)."""
+    from h4pin.studies import _derived
+
+    K, J, status = np.tile(np.eye(8), (2, 1, 1)), np.tile(np.eye(4), (2, 1, 1)), np.zeros(2, dtype=np.int8)
+    _derived.atlas_fields(K, J, status, *(np.empty(2) for _ in range(4)))
+    _derived.design_reduce(K, status, 1)
 
 
 def compile_all(progress: Callable[[str, float], None] | None = None) -> float:
