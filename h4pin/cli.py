@@ -226,15 +226,18 @@ def export(
     mjcf: Path = typer.Option(..., help="write the robot as MuJoCo MJCF here (closures as connect equalities)"),
     variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
     urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    elastic: bool = typer.Option(False, "--elastic", help="the elastic robot: every compliance a spring joint, "
+                                 "actuators locked at the centre pose (h4pin.elastic_model)"),
 ) -> None:
-    """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors)."""
+    """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors;
+    with --elastic, the compliances as spring joints and the actuators locked)."""
     from h4pin.files import check_output
     from h4pin.io.mjcf import write_mjcf
 
     check_output(mjcf, "--mjcf")
     h4 = load_robot(variant, urdf)
     try:
-        typer.echo(f"wrote {write_mjcf(h4, mjcf)}")
+        typer.echo(f"wrote {write_mjcf(h4, mjcf, elastic=elastic)}")
     except OSError as exc:
         fail(f"cannot write {mjcf}: {exc.strerror or exc}")
 

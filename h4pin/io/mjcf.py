@@ -4,7 +4,7 @@
 
 MuJoCo reads h4pin's URDF but drops its ``<constraint>`` elements (``neq = 0``): the legs then
 hang loose. :func:`spec` builds the robot with MuJoCo's own model-editing API instead, from the
-robot's URDF (:attr:`h4pin.H4.urdf`) and its Pinocchio model; MuJoCo compiles and writes it
+robot's URDF (:attr:`H4.urdf <h4pin.H4>`) and its Pinocchio model; MuJoCo compiles and writes it
 (:func:`to_mjcf`). What the file holds (``docs/mujoco.md``):
 
 - one body per URDF link, named after it, in the URDF's tree under ``base_link``: a single tree,
@@ -36,6 +36,14 @@ robot's URDF (:attr:`h4pin.H4.urdf`) and its Pinocchio model; MuJoCo compiles an
 - a floor plane below every pose the legs can reach, a light above the robot and a camera
   :data:`CAMERA` looking at it.
 
+:func:`elastic_spec` (``to_mjcf(h4, elastic=True)``, ``h4pin export --mjcf PATH --elastic``) builds the
+elastic robot of :func:`h4pin.elastic.elastic_model` with the same builder: every virtual elastic
+joint a ``hinge`` or ``slide`` with its ``stiffness``, ``springref`` 0 and a small
+stiffness-proportional damping (:data:`DAMPING`), the actuators locked (their joints removed), and
+closures stiff enough for the springs (:data:`ELASTIC_SOLREF`, :data:`ELASTIC_SOLIMP` at
+:data:`ELASTIC_TIMESTEP`): its static deflection and first frequency in MuJoCo equal
+:func:`h4pin.compliance` and :func:`h4pin.elastic.modes` (``tests/test_mjcf_elastic.py``).
+
 The lowest MuJoCo this works with is :data:`MIN_MUJOCO` (the first whose ``MjSpec`` has a usable
 ``option`` and site ``connect``). ``h4pin export --mjcf PATH`` writes the file; the shipped
 ``mjcf/h4_<variant>.xml`` (:func:`mjcf_path`) are written by ``scripts/generate_urdf.py``.
@@ -45,6 +53,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import os
 import re
 import warnings
@@ -65,6 +74,20 @@ TIMESTEP = 1e-4
 #: Constraint softness of the closures: solref (time constant s, damping ratio) and solimp.
 SOLREF = (0.0005, 1.0)
 SOLIMP = (0.999, 0.9999, 0.001, 0.5, 2.0)
+#: The elastic export (:func:`elastic_spec`): time step (s), and the closures' solref and solimp.
+ELASTIC_TIMESTEP = 5e-5
+ELASTIC_SOLREF = (1e-4, 1.0)
+ELASTIC_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+#: Stiffness-proportional damping of the elastic joints (s): damping = DAMPING * stiffness, so a
+#: mode of frequency f has the damping ratio pi f DAMPING (1.0 % at the prototype's first, 32.7 Hz).
+DAMPING = 1e-4
+#: Mass (kg) and principal inertias (kg.m^2) of the body of a virtual joint: next to nothing,
+#: but MuJoCo refuses a body that moves on joints with no mass and inertia of its own.
+CHAIN_MASS = (1e-6, 1e-12)
+#: A virtual joint that moves no mass gets the armature ``k (ARMATURE_STEPS * timestep)^2`` (kg.m^2 or
+#: kg; k its stiffness): alone on its spring it would swing at ``1 / (ARMATURE_STEPS * timestep)``
+#: rad/s, slow enough for MuJoCo's explicit springs (mass scaling; docs/mujoco.md).
+ARMATURE_STEPS = 2.0
 #: Name of the keyframe (Pinocchio's reference configuration ``q0``).
 KEYFRAME = "q0"
 #: Name of the camera looking at the robot.
@@ -288,28 +311,201 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
     Args:
         h4: an :class:`h4pin.H4`.
         name: the model's name (default: the Pinocchio model's, else ``"h4"``).
-        q: the closed configuration the keyframe holds (default :attr:`h4pin.H4.q0`).
+        q: the closed configuration the keyframe holds (default :attr:`H4.q0 <h4pin.H4>`).
 
     Raises:
         MissingExtraError: MuJoCo is not installed.
         ParameterError: no closed configuration (``h4.q0`` is None and no ``q``), ``q`` does not
             close the loops (1e-9 m), or the URDF has a joint MuJoCo has no counterpart of here.
     """
+    return _build(h4, name, _closed(h4, q), None)
+
+
+def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, damping: float = DAMPING,
+                 solref: Any = ELASTIC_SOLREF, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP) -> Any:
+    """The elastic H4 (:func:`h4pin.elastic.elastic_model`) as a ``mujoco.MjSpec`` (not compiled).
+
+    The robot of :func:`spec`, with every virtual elastic joint of the elastic model as a MuJoCo
+    ``hinge`` or ``slide`` joint of the same name carrying its spring: ``stiffness`` (N.m/rad or
+    N/m, :attr:`ElasticH4.stiffness <h4pin.elastic.h4.ElasticH4>`), ``springref`` 0 (every virtual
+    joint reads 0 at an assembled configuration, so the springs are at rest there) and
+    ``damping = damping * stiffness`` (stiffness-proportional damping: a mode of frequency f gets
+    the damping ratio ``pi f damping``). The actuators are locked: their joints are removed, each
+    forearm welded to the base at its angle in ``q`` (a file holds the robot locked at one
+    configuration). ``actuator_i_elastic``, the actuator's servo and forearm bending spring
+    (coaxial with the actuator), is the forearm's own joint, so that the forearm turns on it as in
+    :func:`h4pin.elastic.modes`; every other virtual joint has a body of its own, named after it
+    (mass :data:`CHAIN_MASS`, next to nothing), nested in chain order, the last carrying what the
+    chain carries in the elastic model (a forearm's tip, a bar's end and its closure site, ...). A
+    virtual joint that moves no mass (a bar's stretch) gets the armature
+    ``stiffness * (ARMATURE_STEPS * timestep)^2`` (kg or kg.m^2), for a positive-definite
+    joint-space inertia and a spring MuJoCo's explicit integration of stiffness keeps stable. No
+    motor (nothing is actuated). The 8 closures are ``connect`` equalities with ``solref`` and
+    ``solimp``; the defaults add less than 0.1 % to the compliance at the default ``timestep``
+    (``docs/mujoco.md``). Gravity is on: the springs sag under the robot's weight.
+
+    Args:
+        h4: an :class:`h4pin.H4` (its elements, ``h4.elements``, become joints too).
+        name: the model's name (default: the Pinocchio model's, else ``"h4"``).
+        q: the robot's closed configuration (Pinocchio's, ``h4.configuration(pose)``): the
+            actuators' locked angles, and the keyframe ``q0`` with every virtual joint at 0
+            (default :attr:`H4.q0 <h4pin.H4>`).
+        damping: stiffness-proportional damping coefficient (s), >= 0.
+        solref, solimp: the closures' constraint parameters (MuJoCo's ``solref`` (time constant
+            s, damping ratio) and ``solimp``).
+        timestep: MuJoCo time step (s), > 0.
+
+    Raises:
+        MissingExtraError: MuJoCo is not installed.
+        ParameterError: as :func:`spec`, or a damping < 0 or a time step <= 0.
+    """
+    from h4pin.elastic import elastic_model
+
+    if not (np.isfinite(damping) and damping >= 0):
+        raise ParameterError(f"damping: must be finite and >= 0 (s), got {damping!r}")
+    if not (np.isfinite(timestep) and timestep > 0):
+        raise ParameterError(f"timestep: must be finite and > 0 (s), got {timestep!r}")
+    q = _closed(h4, q)
+    if not h4.elements.off:
+        warnings.warn("the elastic MJCF of a robot with elements is built (every body where Pinocchio's elastic model "
+                      "puts it) but its simulation is not stable with these settings (docs/mujoco.md)", RuntimeWarning,
+                      stacklevel=2)
+    plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep))
+    return _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
+
+
+@dataclasses.dataclass
+class _Chain:
+    """A chain of virtual joints of the elastic model: a MuJoCo body each, nested (``in_link``: in its link's body)."""
+
+    link: int  # rigid model's frame id of the link whose body is this body's parent (or holds the joints)
+    joints: list[tuple[str, bool, np.ndarray, np.ndarray]]  # (name, revolute, pos, axis) in the link's frame
+    in_link: bool = False  # the joints go into the link's own body (a locked actuator's spring)
+
+
+@dataclasses.dataclass
+class _Plan:
+    """How the elastic model differs from the rigid one, in MJCF terms."""
+
+    em: Any
+    q_em: np.ndarray  # the elastic model's configuration (virtual joints at 0)
+    locked: set[int]  # rigid joint ids removed (actuators)
+    chains: dict[int, _Chain]  # elastic joint id of a chain's end -> chain
+    moved: dict[int, int]  # link frame id -> the chain (end joint id) whose body is its parent
+    sites: dict[str, tuple[int, np.ndarray]]  # closure site -> (chain, position in the chain's frame)
+    stiffness: dict[str, float]
+    damping: float
+    armature: dict[str, float]
+
+
+def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _Plan:
+    """Where each virtual joint of the elastic model ``em`` goes in the MJCF tree of ``h4``."""
+    from h4pin.elastic.modes import mass_model
+
+    rigid, m = h4.model, em.model
+    zero = rigid.createData()
+    pin.framesForwardKinematics(rigid, zero, pin.neutral(rigid))
+    ezero = m.createData()
+    q_ref = np.zeros(m.nq)
+    q_ref[em.q_index] = pin.neutral(rigid)
+    pin.forwardKinematics(m, ezero, q_ref)
+    frames, parent, own_joint = _links(rigid)
+    virtual = {j for j in range(1, m.njoints) if not rigid.existJointName(m.names[j])}
+    link_of = {0: next(f for f in frames if parent[f] == 0)}  # elastic joint -> link whose body it moves
+    for f, j in own_joint.items():
+        link_of[int(m.getJointId(rigid.names[j]))] = f
+    locked = {int(rigid.getJointId(n)) for n in em.locked}
+    heavy = mass_model(em)
+    mass = {j: sum(heavy.inertias[k].mass for k in m.subtrees[j]) for j in virtual}
+
+    chains: dict[int, _Chain] = {}
+    for start in sorted(j for j in virtual if m.parents[j] not in virtual):
+        names, j = [], start
+        while True:
+            names.append(j)
+            nxt = [k for k in range(1, m.njoints) if m.parents[k] == j and k in virtual]
+            if not nxt:
+                break
+            j = nxt[0]
+        link = link_of[m.parents[start]]
+        world = zero.oMf[link]
+        joints = []
+        for k in names:
+            jm, place = m.joints[k], ezero.oMi[k]
+            axis = place.rotation @ _motion(jm)[3:] if _is_revolute(jm) else place.rotation @ _motion(jm)[:3]
+            joints.append((m.names[k], _is_revolute(jm), world.actInv(place.translation), world.rotation.T @ axis))
+        up = rigid.names[rigid.frames[link].parentJoint] if link in own_joint else None
+        if up is not None and own_joint[link] in locked and joints[0][0] == f"{up}_elastic":
+            chains[start] = _Chain(link, joints[:1], in_link=True)  # the forearm turns on it
+            if len(joints) == 1:
+                continue
+            joints = joints[1:]
+        chains[names[-1]] = _Chain(link, joints)
+
+    def carrier(f: int) -> int:
+        return int(m.frames[m.getFrameId(rigid.frames[f].name, pin.FrameType.BODY)].parentJoint)
+
+    moved = {}
+    for f in frames:
+        anchor = int(m.parents[carrier(f)]) if f in own_joint else carrier(f)
+        if parent[f] != 0 and carrier(parent[f]) != anchor:
+            if anchor not in chains:
+                raise ParameterError(f"h4: link {rigid.frames[f].name!r} hangs from virtual joint {m.names[anchor]!r}, "
+                                     "not the end of a chain")
+            moved[f] = anchor
+    sites = {}
+    for c, cm in zip(_closure_list(h4), em.constraint_models, strict=True):
+        for side, link_name, xyz, joint in ((1, c.parent, c.parent_xyz, cm.joint1_id),
+                                            (2, c.child, c.child_xyz, cm.joint2_id)):
+            if joint in virtual:
+                f = int(rigid.getFrameId(link_name, pin.FrameType.BODY))
+                here = zero.oMf[f].act(np.asarray(xyz, float))
+                sites[f"{c.name}_{'parent' if side == 1 else 'child'}"] = (
+                    int(joint), zero.oMf[chains[int(joint)].link].actInv(here))
+    armature = {m.names[k]: em.stiffness[m.names[k]] * (ARMATURE_STEPS * timestep) ** 2
+                for k in virtual if not mass[k] > 0}
+    q_em = np.zeros(m.nq)
+    q_em[em.q_index] = q
+    return _Plan(em, q_em, locked, chains, moved, sites, dict(em.stiffness), damping, armature)
+
+
+def _spring(mujoco: Any, j: Any, plan: _Plan) -> None:
+    """Stiffness, rest position, damping and armature of virtual joint ``j`` (MjsJoint)."""
+    k = plan.stiffness[j.name]
+    for field, value in (("stiffness", k), ("damping", plan.damping * k)):
+        now = getattr(j, field)
+        setattr(j, field, [value] + [0.0] * (len(now) - 1) if np.ndim(now) else value)  # MuJoCo 4: a 3-vector
+    j.springref = 0.0
+    j.armature = plan.armature.get(j.name, 0.0)
+    j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+
+
+def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
+           settings: tuple[list[float], list[float], float] | None = None) -> Any:
+    """The MjSpec of :func:`spec` (``plan`` None) or :func:`elastic_spec` (its :class:`_Plan`)."""
     mujoco = _mujoco()
     model = h4.model
-    q = _closed(h4, q)
     data = model.createData()  # the closed configuration: keyframe, scene
     pin.framesForwardKinematics(model, data, q)
     zero = model.createData()  # the URDF's zero configuration: body placements
     pin.framesForwardKinematics(model, zero, pin.neutral(model))
+    lock = zero
+    if plan is not None:  # the locked actuators at their angles in q, every other joint at zero
+        q_lock = pin.neutral(model)
+        for j in plan.locked:
+            sl = slice(model.joints[j].idx_q, model.joints[j].idx_q + model.joints[j].nq)
+            q_lock[sl] = q[sl]
+        lock = model.createData()
+        pin.framesForwardKinematics(model, lock, q_lock)
     frames, parent, own_joint = _links(model)
     inertials = _urdf_inertials(h4.urdf)
+    solref, solimp, timestep = settings or (list(SOLREF), list(SOLIMP), TIMESTEP)
 
     s = mujoco.MjSpec()
     s.modelname = name or model.name or "h4"
     compiler = getattr(s, "compiler", s)  # MuJoCo >= 3.2.5 groups these under spec.compiler
     compiler.degree = False
-    s.option.timestep = TIMESTEP
+    s.option.timestep = timestep
     s.option.gravity = _floats(model.gravity.linear)
     s.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 
@@ -319,13 +515,46 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
     closures = _closure_sites(h4)
 
     bodies: dict[int, Any] = {0: s.worldbody}
+    chain_bodies: dict[int, Any] = {}
+
+    def chain_body(end: int) -> Any:
+        assert plan is not None
+        if plan.chains[end].in_link:
+            return bodies[plan.chains[end].link]
+        if end not in chain_bodies:
+            body = bodies[plan.chains[end].link]
+            for jname, revolute, pos, axis in plan.chains[end].joints:  # one body per joint, at the link's frame
+                body = body.add_body()
+                body.name = jname
+                body.mass, body.inertia = CHAIN_MASS[0], [CHAIN_MASS[1]] * 3  # MuJoCo's least for a moving body
+                body.ipos = [0.0, 0.0, 0.0]  # (the XML writer leaves out an inertial without it)
+                if hasattr(body, "explicitinertial"):
+                    body.explicitinertial = True
+                j = body.add_joint()
+                j.name, j.pos, j.axis = jname, _floats(pos), _floats(axis)
+                j.type = mujoco.mjtJoint.mjJNT_HINGE if revolute else mujoco.mjtJoint.mjJNT_SLIDE
+                _spring(mujoco, j, plan)
+            chain_bodies[end] = body
+        return chain_bodies[end]
+
     for f in frames:
         frame, up = model.frames[f], parent[f]
-        body = bodies[up].add_body()
+        if plan is not None and f in plan.moved:  # on a chain's body, whose frame is its link's
+            body, there = chain_body(plan.moved[f]).add_body(), plan.chains[plan.moved[f]].link
+        else:
+            body, there = bodies[up].add_body(), up
         bodies[f] = body
         body.name = frame.name
-        place = zero.oMf[f] if up == 0 else zero.oMf[up].actInv(zero.oMf[f])
+        place = lock.oMf[f] if there == 0 else lock.oMf[there].actInv(lock.oMf[f])
         joint_id = own_joint.get(f)
+        if plan is not None and joint_id in plan.locked:
+            joint_id = None  # locked: the link is welded at its angle
+            for chain in plan.chains.values():
+                if chain.in_link and chain.link == f:
+                    jname, _, pos, axis = chain.joints[0]
+                    j = body.add_joint()
+                    j.name, j.type, j.pos, j.axis = jname, mujoco.mjtJoint.mjJNT_HINGE, _floats(pos), _floats(axis)
+                    _spring(mujoco, j, plan)
         if joint_id is not None:
             joint, jname = model.joints[joint_id], model.names[joint_id]
             if _is_free(joint):
@@ -360,11 +589,15 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
                                         tensor[0, 1], tensor[0, 2], tensor[1, 2]])
             if hasattr(body, "explicitinertial"):
                 body.explicitinertial = True
-        elif joint_id is None and up != 0:
+        elif joint_id is None and up != 0 and not (plan is not None and own_joint.get(f) in plan.locked):
             site = body.add_site()
             site.name, site.size, site.group = frame.name, [0.004, 0.0, 0.0], 2
         for site_name, xyz in closures.get(frame.name, []):
-            site = body.add_site()
+            if plan is not None and site_name in plan.sites:
+                end, xyz = plan.sites[site_name]
+                site = chain_body(end).add_site()
+            else:
+                site = body.add_site()
             site.name, site.pos, site.size, site.group = site_name, _floats(xyz), [0.003, 0.0, 0.0], 3
         for obj in geoms.get(f, []):
             shape = _geom_shape(mujoco, obj.geometry)
@@ -376,14 +609,18 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
             g.pos, g.quat = _floats(local.translation), _quat(local.rotation)
             g.rgba = _floats(obj.meshColor)
             g.density, g.contype, g.conaffinity, g.group = 0.0, 0, 0, 1
+    if plan is not None:
+        for end in plan.chains:
+            if not plan.chains[end].in_link:
+                chain_body(end)  # a chain that carries nothing still has its springs
 
     for c in _closure_list(h4):
         e = s.add_equality()
         e.name, e.type = c.name, mujoco.mjtEq.mjEQ_CONNECT
         e.objtype = mujoco.mjtObj.mjOBJ_SITE
         e.name1, e.name2 = f"{c.name}_parent", f"{c.name}_child"
-        e.solref, e.solimp = list(SOLREF), list(SOLIMP)
-    for jname in h4.actuated_joint_names:
+        e.solref, e.solimp = list(solref), list(solimp)
+    for jname in h4.actuated_joint_names if plan is None else ():
         effort = float(model.effortLimit[model.joints[model.getJointId(jname)].idx_v])
         a = s.add_actuator()
         a.name, a.trntype, a.target = jname, mujoco.mjtTrn.mjTRN_JOINT, jname
@@ -392,10 +629,31 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
             a.ctrllimited, a.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, [-effort, effort]
         else:
             a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    key = s.add_key()
-    key.name, key.qpos = KEYFRAME, _floats(qpos(h4, q))
     _scene(model, s, mujoco, data)
+    key = s.add_key()
+    key.name = KEYFRAME
+    key.qpos = _floats(qpos(h4, q)) if plan is None else _floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
     return s
+
+
+def _named_qpos(m: Any, model: pin.Model, q: np.ndarray) -> np.ndarray:
+    """MuJoCo ``qpos`` (nq of the compiled ``m``) of the Pinocchio configuration ``q`` of
+    ``model``, joint by joint by name (a floating joint as its slides and ball, :func:`qpos`)."""
+    import mujoco
+
+    out = np.zeros(m.nq)
+    for jid in range(m.njnt):
+        name, adr = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, jid), int(m.jnt_qposadr[jid])
+        own = name if model.existJointName(name) else name[:-2]
+        j = model.joints[model.getJointId(own)]
+        v = q[j.idx_q:j.idx_q + j.nq]
+        if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_BALL:
+            out[adr:adr + 4] = np.r_[v[6], v[3:6]]
+        elif own != name:
+            out[adr] = v[SLIDES.index(name[-2:])]
+        else:
+            out[adr] = _angle(j, q) if j.nq == 2 else v[0]
+    return out
 
 
 def _closure_list(h4: Any) -> list[Any]:
@@ -458,25 +716,29 @@ def _scene(model: pin.Model, s: Any, mujoco: Any, data: pin.Data) -> None:
     camera.fovy = 45.0
 
 
-def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> str:
-    """MJCF text of ``h4``: :func:`spec` compiled and written by MuJoCo (``MjSpec.to_xml``, every
-    number to 17 significant digits), after two comment lines: the licence, and what wrote it
-    (with the MuJoCo version, whose writer's layout can differ from another's).
+def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, elastic: bool = False) -> str:
+    """MJCF text of ``h4``: :func:`spec` (``elastic=True``: :func:`elastic_spec` with its default
+    settings) compiled and written by MuJoCo (``MjSpec.to_xml``, every number to 17 significant
+    digits), after two comment lines: the licence, and what wrote it (with the MuJoCo version, whose
+    writer's layout can differ from another's).
 
     Raises:
         MissingExtraError: MuJoCo is not installed.
         ParameterError: as :func:`spec`.
     """
     mujoco = _mujoco()
-    s = spec(h4, name, q)
+    s = elastic_spec(h4, name, q) if elastic else spec(h4, name, q)
     s.compile()
     with _full_precision(mujoco):
         text = s.to_xml()
     head, sep, rest = text.partition("\n")
+    what = (f"its URDF and h4pin.elastic_model: every compliance a spring joint (stiffness N.m/rad or N/m, "
+            f"springref 0, damping {DAMPING:g} s x stiffness), the actuators locked, the closures as connect "
+            "equalities, keyframe q0." if elastic else
+            "its URDF: one body per link, the closures as connect equalities, torque motors (N.m), keyframe q0.")
     note = ("<!-- SPDX-License-Identifier: Apache-2.0 -->\n"
-            f"<!-- The H4 parallel robot '{s.modelname}', written by h4pin.io.mjcf through "
-            f"MuJoCo {mujoco.__version__}'s MjSpec from its URDF: one body per link, the closures as connect "
-            "equalities, torque motors (N.m), keyframe q0. -->\n")
+            f"<!-- The {'elastic ' if elastic else ''}H4 parallel robot '{s.modelname}', written by h4pin.io.mjcf "
+            f"through MuJoCo {mujoco.__version__}'s MjSpec from {what} -->\n")
     if head.startswith("<?xml"):
         return head + sep + note + rest
     return note + text
@@ -508,9 +770,10 @@ def qpos(h4: Any, q: np.ndarray) -> np.ndarray:
     return np.asarray(out, float)
 
 
-def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None) -> Path:
+def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None, *, elastic: bool = False) -> Path:
     """Write :func:`to_mjcf` to ``path`` atomically (a temporary file renamed), mode 0644. The model
-    is named ``name``, else after the file (its stem).
+    is named ``name``, else after the file (its stem); ``elastic=True`` writes the elastic robot
+    (:func:`elastic_spec`).
 
     Raises:
         MissingExtraError: MuJoCo is not installed.
@@ -522,8 +785,9 @@ def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None) -
         raise IsADirectoryError(f"path: {path} is a folder")
     if not path.parent.is_dir():
         raise FileNotFoundError(f"path: no folder {path.parent}")
-    return write_text(path, to_mjcf(h4, name or path.stem))
+    return write_text(path, to_mjcf(h4, name or path.stem, elastic=elastic))
 
 
-__all__ = ["CAMERA", "KEYFRAME", "MIN_MUJOCO", "SLIDES", "SOLIMP", "SOLREF", "TIMESTEP", "mjcf_dir", "mjcf_path",
+__all__ = ["ARMATURE_STEPS", "CAMERA", "CHAIN_MASS", "DAMPING", "ELASTIC_SOLIMP", "ELASTIC_SOLREF", "ELASTIC_TIMESTEP",
+           "KEYFRAME", "MIN_MUJOCO", "SLIDES", "SOLIMP", "SOLREF", "TIMESTEP", "elastic_spec", "mjcf_dir", "mjcf_path",
            "qpos", "spec", "to_mjcf", "write_mjcf", "writer_version"]
