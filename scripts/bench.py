@@ -18,6 +18,7 @@ they agree.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import resource
 import time
@@ -107,6 +108,67 @@ def best_of(repeat: int, fn) -> float:
     return min(times)
 
 
+#: The previous release's table (README of 0.1.0, this machine), us/pose, by row name.
+PREVIOUS = {
+    "numpy batch (reference), 'paper', incl. inverse geometry": 13.5,
+    "h4pin.compliance(h4, poses): default batch path": 0.87,
+    "h4pin.compliance(h4, pose): default one-pose path": 6.8,
+    "h4pin.compliance(h4, pose, method='pinocchio')": 37.2,
+    "h4pin.compliance, robot with all 11 elements, one pose": 1280.0,
+    "atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)": 2.9,
+    "naive per-pose numpy eq. 30 (loops, np.cross, inv)": 1868.0,
+    "validation: Newton-Euler statics route": 688.0,
+    "validation: finite-difference route (non-linear)": 37912.0,
+    "kernel batch, 'paper', 1 thread, incl. IGM + verdict": 1.55,
+    "kernel batch, 'consistent', 1 thread, incl. IGM + verdict": 1.55,
+    "kernel batch, 'paper', 2 threads, incl. IGM + verdict": 0.81,
+    "kernel batch, 'consistent', 2 threads, incl. IGM + verdict": 0.81,
+    "kernel, one pose (Kernel call, incl. Python overhead)": 4.1,
+}
+#: Floating-point operations of the kernel a pose (inverse geometry, verdicts including the bar
+#: interference check, M1, its inverse and condition, eq. 30), counted from its source.
+KERNEL_FLOPS = 7389
+
+
+def cpu_summary() -> str:
+    """The CPU's model, clock and vector units (from /proc/cpuinfo)."""
+    info = _cpuinfo()
+    flags = info.get("flags", "")
+    units = ", ".join(name if f" {name.lower()}" in f" {flags}" else f"no {name}" for name in ("AVX2", "FMA"))
+    return f"{info.get('model name', '?')}, {info.get('cpu MHz', '?')} MHz, {units}"
+
+
+def _cpuinfo() -> dict[str, str]:
+    try:
+        text = open("/proc/cpuinfo").read().split("\n\n")[0]
+    except OSError:
+        return {}
+    return {k.strip(): v.strip() for k, _, v in (line.partition(":") for line in text.splitlines())}
+
+
+def peak_flops() -> float:
+    """One core's double-precision peak, flop/s: 2 FMA units x 4 lanes (AVX2) x 2 flops x clock
+    (x86-64 with AVX2 and FMA; 0 when unknown)."""
+    info = _cpuinfo()
+    flags = info.get("flags", "")
+    if "avx2" not in flags or " fma" not in flags or "cpu MHz" not in info:
+        return 0.0
+    return 2 * 4 * 2 * float(info["cpu MHz"]) * 1e6
+
+
+def bytes_per_pose_of(call, n: int) -> float:
+    """Peak bytes a pose allocated by ``call`` (tracemalloc; numpy reports its buffers)."""
+    import tracemalloc
+
+    call()
+    tracemalloc.start()
+    out = call()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    del out
+    return peak / n
+
+
 def peak_rss_mb() -> float:
     """Peak resident set size of this process so far, MB (Linux reports ru_maxrss in KB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -183,6 +245,13 @@ def main() -> None:
     t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
     t_kernel, t_one = kernel_rows(h4, poses, args.repeat)
+    t_terms = best_of(args.repeat, lambda: compliance(h4, poses, "paper", terms=True)) / len(poses)
+    x0 = few[0]
+    t_small = {n: best_of(args.repeat, lambda n=n: [compliance(h4, few[:n]) for _ in range(200)]) / 200
+               for n in (1, 10)}
+    mem_default, mem_terms = (bytes_per_pose_of(lambda t=t: compliance(h4, poses, "paper", terms=t), len(poses))
+                              for t in (False, True))
+    t_single_terms = best_of(args.repeat, lambda: [compliance(h4, x0, "paper", terms=True) for _ in range(2000)]) / 2000
     with_el = h4.with_elements(ILLUSTRATIVE)
     t_el_batch = best_of(args.repeat, lambda: compliance(with_el, few, "paper")) / n_single
     t_el_single = best_of(args.repeat, lambda: [compliance(with_el, x, "paper") for x in few[:500]]) / 500
@@ -202,9 +271,8 @@ def main() -> None:
 
     per_pose = t_batch / len(poses)
     print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {len(poses)} batch poses, "
-          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, kernel vs h4pin: {agree_k:.1e} relative)\n")
-    print(f"| {'path':<58} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} | {'vs batch':>8} |")
-    print(f"|{'-' * 60}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|")
+          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, kernel vs h4pin: {agree_k:.1e} relative), "
+          f"load average before: {os.getloadavg()[0]:.2f}\n")
     rows = [
         ("numpy batch (reference), 'paper', incl. inverse geometry", per_pose),
         ("numpy batch (reference), 'consistent', incl. inverse geometry", t_batch_c / len(poses)),
@@ -218,23 +286,45 @@ def main() -> None:
         ("validation: Newton-Euler statics route", t_statics),
         ("validation: finite-difference route (non-linear)", t_fd),
     ]
+    rows += [
+        ("h4pin.compliance(h4, poses, terms=True): batch with terms", t_terms),
+        ("h4pin.compliance(h4, pose, terms=True): one pose with terms", t_single_terms),
+        ("h4pin.compliance(h4, poses) for a batch of 1 pose (per call)", t_small[1]),
+        ("h4pin.compliance(h4, poses) for a batch of 10 poses (per call)", t_small[10]),
+    ]
     for (model, threads), t in t_kernel.items():
         rows.append((f"kernel batch, '{model}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", t))
     rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t_one))
+    peak = peak_flops()
+    print(f"| {'path':<64} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} | {'vs batch':>8} "
+          f"| {'vs prev.':>8} | {'of peak':>7} |")
+    print(f"|{'-' * 66}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|{'-' * 10}|{'-' * 9}|")
     for name, t in rows:
-        print(f"| {name:<58} | {1 / t:>10.0f} | {t * 1e6:>9.2f} | {t_naive / t:>7.1f}x | {per_pose / t:>7.2f}x |")
-    print(f"\nkernel output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status)")
+        prev = PREVIOUS.get(name)
+        vs_prev = f"{prev / (t * 1e6):>7.2f}x" if prev else f"{'':>8}"
+        hw = ""
+        if name.startswith("kernel batch") and peak:
+            threads = int(name.split(" thread")[0].rsplit(" ", 1)[-1])
+            hw = f"{KERNEL_FLOPS / t / (peak * threads):.1%}"
+        print(f"| {name:<64} | {1 / t:>10.0f} | {t * 1e6:>9.2f} | {t_naive / t:>7.1f}x | {per_pose / t:>7.2f}x "
+              f"| {vs_prev} | {hw:>7} |")
+    print(f"\n'vs prev.': the same row in the previous release's table (README of 0.1.0, same machine); 'of peak':"
+          f" {KERNEL_FLOPS} flops a pose x poses/s / the cores' double-precision peak"
+          f" ({peak / 1e9:.1f} GFLOP/s a core: {cpu_summary()})" if peak else "")
+    print(f"kernel output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status); "
+          f"h4pin.compliance peak memory a pose: {mem_default:.0f} B, {mem_terms:.0f} B with terms")
 
     print("\ntargets:")
     one_core = min(1 / t_kernel["paper", 1], 1 / t_kernel["consistent", 1])
     two_cores = min(1 / t_kernel["paper", 2], 1 / t_kernel["consistent", 2])
     checks = [
-        ("batch, 1 core >= 400 000 poses/s", one_core, 400_000, "poses/s"),
-        ("batch, 2 cores >= 1.8x 1 core", two_cores / one_core, 1.8, "x"),
-        ("one pose (kernel call) <= 10 us", 10e-6 / t_one, 1.0, "x of 10 us"),
-        ("one pose, h4pin.compliance <= 10 us", 10e-6 / t_single, 1.0, "x of 10 us"),
+        ("batch, 1 core >= 1 200 000 poses/s", one_core, 1_200_000, "poses/s"),
+        ("batch, 2 cores >= 1.9x 1 core", two_cores / one_core, 1.9, "x"),
+        ("one pose, h4pin.compliance <= 4 us", 4e-6 / t_single, 1.0, "x of 4 us"),
         ("one pose via Pinocchio <= 50 us", 50e-6 / t_single_pin, 1.0, "x of 50 us"),
-        ("<= 0.6 KB/pose without terms", 600 / bytes_per_pose, 1.0, "x of 600 B"),
+        ("terms=True <= 1.3x the default batch", 1.3 * t_default / t_terms, 1.0, "x of 1.3x"),
+        ("terms=True <= 2.5 KB/pose", 2560 / mem_terms, 1.0, "x of 2560 B"),
+        ("default batch <= 600 B/pose", 600 / mem_default, 1.0, "x of 600 B"),
     ]
     for name, got, want, unit in checks:
         verdict = "met" if got >= want else f"MISSED by {(1 - got / want):.0%}"
