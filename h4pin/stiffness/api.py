@@ -278,7 +278,8 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
     res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
     if terms:
         return res
-    return dataclasses.replace(res, terms=_lazy_terms(h4, res.pose, model, method, active))
+    return Compliance._of(*(_lazy_terms(h4, res.pose, model, method, active) if f == "terms" else getattr(res, f)
+                            for f in _FIELDS))
 
 
 def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[Any, Any, float, int, Any]:

@@ -416,8 +416,13 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     code = _model_code(model)
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
+    res = _empty(len(x), terms, jacobian) if out is None else _check_out(out, len(x), terms, jacobian)
+    return _run(kern, x, code, res, terms, jacobian)
+
+
+def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> KernelResult:
+    """:func:`compliance_batch` on checked input: x (N, 4) C-contiguous float64, res of its size."""
     n = len(x)
-    res = _empty(n, terms, jacobian) if out is None else _check_out(out, n, terms, jacobian)
     T = res.terms if terms else np.empty((1, 4, 8, 8))
     J = res.J if jacobian else np.empty((1, 4, 4))
     if n:
@@ -497,5 +502,6 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
     robots whose parallelograms are exact."""
     from h4pin.stiffness.eq30 import Raw
 
-    res = compliance_batch(for_geometry(h4.geometry), x, model, terms=terms)
+    res = _run(for_geometry(h4.geometry), x, MODELS.index(model), _empty(len(x), terms, False), terms,
+               False)  # x: the caller's checked (N, 4) finite poses
     return Raw(res.K, res.terms, res.q, res.condition, res.status)
