@@ -3,7 +3,7 @@
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
 first need: the Pinocchio configuration (``h4pin.load``), the one-pose kernel, the Pinocchio path,
-the batch kernels and the atlas and sweep reductions. After it, every call starts compiled.
+the batch kernels (scalar and vector) and the atlas and sweep reductions. After it, every call starts compiled.
 h4pin starts this module by itself in the background the first time a call needs code that is
 not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
 ``pip install`` in a Dockerfile.
@@ -25,6 +25,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
     from h4pin.stiffness.kernel import SERIAL_BELOW
+    from h4pin.stiffness.vector import VECTOR_FROM
 
     state: dict[str, object] = {}
 
@@ -40,6 +41,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
             ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
             ("small-batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
             ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (SERIAL_BELOW, 1)), method="kernel")),
+            ("vector kernel", lambda: compliance(state["h4"], np.tile(pose(), (VECTOR_FROM, 1)), method="kernel")),
             ("atlas and sweep fields", _study_fields)]
 
 

@@ -109,9 +109,10 @@ def test_empty_cache_answers_without_compiling(tmp_path, proto, centre):
     assert got["status"] == [1, 0]
 
 
-READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import kernel, pinocchio as pb; "
+READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import kernel, vector, pinocchio as pb; "
          "from h4pin import _jit; print(all(_jit._ready_one(f) for f in "
-         "(_compiled.configuration_packed, kernel._one, kernel._batch, kernel._batch_serial, pb._pose)))")
+         "(_compiled.configuration_packed, kernel._one, kernel._batch, kernel._batch_serial, pb._pose, "
+         "vector._vbatch)))")
 
 
 @pytest.mark.slow
