@@ -252,3 +252,38 @@ def test_compiled_code_is_cached(proto, centre):
     assert out.returncode == 0, out.stderr
     hits_threaded, hits_serial, *misses = map(int, out.stdout.split())
     assert hits_threaded >= 1 and hits_serial >= 1 and misses == [0, 0]
+
+
+def test_pack_broadcasts_over_robots(proto, sym):
+    """kernel.pack over a leading robot axis gives, row by row, the vectors of Kernel (prepare);
+    Kernel.from_packed wraps one as a read-only kernel without a geometry."""
+    geoms = [writable_geometry(h4.geometry) for h4 in (proto, sym, proto)]
+    stacked = {name: np.stack([getattr(g, name) for g in geoms]) for name in kernel._SHAPES}
+    stacked["bar_clearance"] = np.array([g.bar_clearance for g in geoms])
+    G = kernel.pack(**stacked)
+    assert G.shape == (3, kernel._SIZE)
+    for row, h4 in zip(G, (proto, sym, proto), strict=True):
+        ref = kernel.prepare(h4.geometry)
+        np.testing.assert_array_equal(row, ref.packed)
+        kern = kernel.Kernel.from_packed(row)
+        assert kern.geometry is None and not kern.packed.flags.writeable
+        np.testing.assert_array_equal(kern.packed, ref.packed)
+    kern = kernel.Kernel.from_packed(G[1])
+    G[1] = 0.0  # a copy: the kernel keeps its vector
+    np.testing.assert_array_equal(kern.packed, kernel.prepare(sym.geometry).packed)
+    with pytest.raises(ParameterError, match="shape"):
+        kernel.Kernel.from_packed(G[:, :10])
+
+
+def test_pack_fields_checks_as_prepare_does(proto):
+    """The batched route refuses what prepare refuses (here a non-unit actuator axis)."""
+    from h4pin.description.geometry import geometry_arrays, geometry_from_params
+    from h4pin.description.params import SPRINGS
+
+    p = proto.params
+    fields = geometry_arrays(np.stack([p.P, p.P]), p.U, p.forearm_dirs, p.r, p.l, p.half_width, p.DB, p.DC,
+                             {name: getattr(p, name) for name in SPRINGS})
+    np.testing.assert_array_equal(kernel.pack_fields(fields)[1], kernel.prepare(geometry_from_params(p)).packed)
+    fields["u"] = fields["u"] * np.array([1.0, 1.1])[:, None, None, None]
+    with pytest.raises(ParameterError, match="unit vectors"):
+        kernel.pack_fields(fields)

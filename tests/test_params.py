@@ -101,3 +101,28 @@ def test_compliances_closed_form():
     assert c["bending"] == pytest.approx(np.full(4, (2 / 3) ** 3 * 0.26 / (3 * 7e10 * 1.6e-8)))
     assert c["torsion"] == pytest.approx(np.full(4, (2 / 3) * 0.26 / (2.8e10 * 3.2e-8)))
     assert c["tension"] == pytest.approx(np.full(8, 0.48 / (28e-6 * 2e11)))
+
+
+def test_batched_checks_agree_with_h4params():
+    """ball_joints_apart and bars_reach over a design axis: False exactly where H4Params raises
+    the matching error (per-leg half-widths and per-bar lengths)."""
+    from h4pin.description.params import ball_joints_apart, bars_reach
+
+    rng = np.random.default_rng(7)
+    p = H4Params()
+    n = 300
+    hw = rng.uniform(0.02, 0.075, (n, 4))
+    r = rng.uniform(0.1, 0.4, (n, 4))
+    l = np.repeat(rng.uniform(0.05, 0.7, (n, 4)), 2, axis=1)
+    apart = ball_joints_apart(p.DB, p.U, hw, p.ball_radius)
+    reach = bars_reach(p.P, p.U, p.DB, r, l)
+    assert apart.shape == reach.shape == (n,)
+    assert 0 < apart.sum() < n and 0 < reach.sum() < n
+    for k in range(n):
+        try:
+            H4Params(half_width=hw[k], r=r[k], l=l[k])
+        except ParameterError as exc:
+            assert not (apart[k] and reach[k])
+            assert ("collide or cross" in str(exc)) == (not apart[k])
+            continue
+        assert apart[k] and reach[k]

@@ -129,9 +129,10 @@ def test_cli_sweep(tmp_path):
 
 
 def test_packed_kernels_equal_the_canonical_route():
-    """sweep._kernels packs many designs at once: the same validity as params_of (ParameterError)
-    and the same packed vectors as kernel.prepare(geometry_from_params(params_of(row))), over
-    the default bounds and wider ones where about a quarter of the designs are invalid."""
+    """sweep._kernels runs the checks of H4Params, geometry_from_params and the packing of
+    kernel.prepare over a design axis: the same validity as params_of (ParameterError) and,
+    bit for bit, the same packed vectors as kernel.prepare(geometry_from_params(params_of(row))),
+    over the default bounds and wider ones where about a quarter of the designs are invalid."""
     from h4pin.stiffness import kernel
 
     wide = {**sweep.BOUNDS, "half_width": (0.005, 0.09), "r": (0.1, 0.45), "l": (0.2, 0.8), "layout": (0.5, 1.6),
@@ -146,8 +147,10 @@ def test_packed_kernels_equal_the_canonical_route():
                 assert kern is None
                 n_invalid += 1
                 continue
-            np.testing.assert_allclose(kern.packed, ref.packed, rtol=1e-15, atol=0)
+            np.testing.assert_array_equal(kern.packed, ref.packed)
+            assert kern.geometry is None and not kern.packed.flags.writeable
     assert 50 < n_invalid < 600
+    assert sweep._kernels(np.array([[0.09, 0.1, 0.2, 1.6, 0.5, 5e3]] * 3)) == [None] * 3  # no valid design
 
 
 def test_designs_are_generated_once(tmp_path, monkeypatch):

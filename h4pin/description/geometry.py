@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from h4pin.description.params import LEG_LATERAL, PER_LEG, SPRINGS, H4Params
+from h4pin.description.params import LEG_LATERAL, PER_LEG, SPRINGS, H4Params, ball_centres
 from h4pin.errors import MalformedURDFError
 
 #: Tolerance (m) for "this point lies on that axis" checks when reading a model.
@@ -95,12 +95,11 @@ class H4Geometry:
         object.__setattr__(self, "springs", {k: _ro(v) for k, v in self.springs.items()})
         lat = self.lat.reshape(4, 2)
         object.__setattr__(self, "leg_lat", _ro(lat[:, 0], int))
-        A = self.A0.reshape(4, 2, 3).mean(axis=1)
-        m = A - self.P
+        A, m, r = forearms(self.A0, self.P)
         object.__setattr__(self, "A0_leg", _ro(A))
         object.__setattr__(self, "m", _ro(m))
         object.__setattr__(self, "um", _ro(np.cross(self.u, m)))
-        object.__setattr__(self, "r", _ro(np.linalg.norm(m, axis=1)))
+        object.__setattr__(self, "r", _ro(r))
         b_leg = self.b.reshape(4, 2, 3).mean(axis=1)
         object.__setattr__(self, "b_leg", _ro(b_leg))
         object.__setattr__(self, "l_leg", _ro(self.l.reshape(4, 2).mean(axis=1)))
@@ -191,20 +190,43 @@ def check_springs(springs: dict[str, Any], where: str,
     return out
 
 
+def forearms(A0: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The forearm ends A_i (mid-points of A_i1, A_i2), the forearms m_i = A_i - P_i (..., 4, 3)
+    and their lengths r_i (..., 4), from A0 (..., 8, 3) and P (..., 4, 3) (leading axes broadcast)."""
+    A = A0.reshape(A0.shape[:-2] + (4, 2, 3)).mean(axis=-2)
+    m = A - P
+    return A, m, np.linalg.norm(m, axis=-1)
+
+
+def geometry_arrays(P: np.ndarray, U: np.ndarray, forearm_dirs: np.ndarray, r: np.ndarray, l: np.ndarray,
+                    half_width: np.ndarray, DB: np.ndarray, DC: np.ndarray, springs: dict[str, np.ndarray],
+                    bar_clearance: float = BAR_CLEARANCE) -> dict[str, Any]:
+    """The fields of :class:`H4Geometry` (its keyword arguments) of the robots
+    :func:`h4pin.description.urdf.to_urdf` writes for :class:`H4Params` arrays with leading design
+    axes (broadcast): P, U, forearm_dirs, DB (..., 3, 4), DC (..., 3, 2), r, half_width (..., 4),
+    l (..., 8), springs as :class:`H4Params` holds them (leading axes too). One design gives
+    :func:`geometry_from_params`; many at once, the design sweep (:mod:`h4pin.studies.sweep`)."""
+    P, u, a = (np.swapaxes(np.asarray(x, dtype=float), -1, -2) for x in (P, U, forearm_dirs))
+    r, h = np.asarray(r, dtype=float), np.asarray(half_width, dtype=float)
+    A = P + r[..., None] * a
+    A0 = A[..., :, None, :] + _SIGNS[:, None] * h[..., :, None, None] * u[..., :, None, :]
+    A0 = A0.reshape(A0.shape[:-3] + (8, 3))
+    C0 = np.swapaxes(np.asarray(DC, dtype=float), -1, -2)
+    b = ball_centres(DB, U, h) - C0[..., LEG_LATERAL, :][..., None, :]
+    b = b.reshape(b.shape[:-3] + (8, 3))
+    batch = A0.shape[:-2]
+    return dict(P=P, u=u, A0=A0, l=np.asarray(l, dtype=float), lat=np.repeat(LEG_LATERAL, 2), C0=C0, b=b,
+                v=np.broadcast_to(_Z, batch + (2, 3)), springs=springs,
+                q_lo=np.full(batch + (4,), ACTUATOR_LIMITS[0]), q_hi=np.full(batch + (4,), ACTUATOR_LIMITS[1]),
+                omega_lo=np.full(batch + (2,), LATERAL_LIMITS[0]), omega_hi=np.full(batch + (2,), LATERAL_LIMITS[1]),
+                bar_clearance=bar_clearance)
+
+
 def geometry_from_params(params: H4Params, bar_clearance: float = BAR_CLEARANCE) -> H4Geometry:
     """The :class:`H4Geometry` of the robot :func:`h4pin.description.urdf.to_urdf` writes for ``params``."""
     p = params
-    P, u, a = p.P.T, p.U.T, p.forearm_dirs.T
-    h = p.half_width
-    A = P + p.r[:, None] * a
-    A0 = (A[:, None, :] + _SIGNS[None, :, None] * h[:, None, None] * u[:, None, :]).reshape(8, 3)
-    lat = np.repeat(LEG_LATERAL, 2)
-    b = (p.plate_ball_centres() - p.DC.T[LEG_LATERAL][:, None, :]).reshape(8, 3)
-    return H4Geometry(
-        P=P, u=u, A0=A0, l=p.l, lat=lat, C0=p.DC.T, b=b, v=np.tile(_Z, (2, 1)),
-        springs={name: getattr(p, name) for name in SPRINGS},
-        q_lo=np.full(4, ACTUATOR_LIMITS[0]), q_hi=np.full(4, ACTUATOR_LIMITS[1]),
-        omega_lo=np.full(2, LATERAL_LIMITS[0]), omega_hi=np.full(2, LATERAL_LIMITS[1]), bar_clearance=bar_clearance)
+    return H4Geometry(**geometry_arrays(p.P, p.U, p.forearm_dirs, p.r, p.l, p.half_width, p.DB, p.DC,
+                                        {name: getattr(p, name) for name in SPRINGS}, bar_clearance))
 
 
 def params_from_geometry(g: H4Geometry, ball_radius: float = 5e-3) -> H4Params:
@@ -218,17 +240,16 @@ def params_from_geometry(g: H4Geometry, ball_radius: float = 5e-3) -> H4Params:
     """
     a = np.cross(g.u, _Z)
     h = 0.5 * np.einsum("ia,ia->i", g.A0[0::2] - g.A0[1::2], g.u)
-    want_A0 = (g.P + g.r[:, None] * a)[:, None, :] + _SIGNS[None, :, None] * h[:, None, None] * g.u[:, None, :]
     dc = g.C0.T
     db = (g.C0[g.leg_lat] + g.b_leg).T
-    want_b = (db.T[:, None, :] + _SIGNS[None, :, None] * h[:, None, None] * g.u[:, None, :]
-              - g.C0[g.leg_lat][:, None, :]).reshape(8, 3)
-    if not (np.allclose(want_A0.reshape(8, 3), g.A0, atol=1e-12) and np.allclose(want_b, g.b, atol=1e-12)
-            and np.allclose(g.lat, np.repeat(LEG_LATERAL, 2)) and np.allclose(g.v, _Z, atol=1e-12)):
+    want = geometry_arrays(g.P.T, g.u.T, a.T, g.r, g.l, h, db, dc, g.springs)
+    if not (np.allclose(want["A0"], g.A0, atol=1e-12) and np.allclose(want["b"], g.b, atol=1e-12)
+            and np.allclose(g.lat, want["lat"]) and np.allclose(g.v, _Z, atol=1e-12)):
         raise MalformedURDFError("this robot's layout is not one H4Params describes (per-bar offsets, tilted "
                                  "lateral axes or another leg-to-lateral-bar assignment)")
     return H4Params(P=g.P.T, U=g.u.T, r=g.r, l=g.l, DB=db, DC=dc, half_width=h, ball_radius=ball_radius,
                     **{k: v for k, v in g.springs.items()})
 
 
-__all__ = ["H4Geometry", "check_springs", "geometry_from_params", "params_from_geometry"]
+__all__ = ["H4Geometry", "check_springs", "forearms", "geometry_arrays", "geometry_from_params",
+           "params_from_geometry"]

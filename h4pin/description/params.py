@@ -157,41 +157,24 @@ class H4Params:
         self._check_bars_reach()
 
     def _check_ball_joints(self) -> None:
-        """Refuse a half-width for which plate-side ball joints of two legs collide or cross.
-
-        The two balls of leg i and the plate between them form the segment B_i1 B_i2; the
-        segments of two legs must stay two ball radii apart (a crossed pair has distance 0).
-        """
-        b = self.plate_ball_centres()  # (4, 2, 3), at theta = 0
-        for i in range(4):
-            for i2 in range(i + 1, 4):
-                gap = segment_distance(b[i, 0], b[i, 1], b[i2, 0], b[i2, 1])
-                if gap < 2 * self.ball_radius:
-                    raise ParameterError(
-                        f"half_width = {self.half_width[i] * 1e3:.1f} / {self.half_width[i2] * 1e3:.1f} mm makes "
-                        f"the ball joints of legs {i + 1} and {i2 + 1} collide or cross on the plate (their "
-                        f"segments are {gap * 1e3:.1f} mm apart, ball_radius = {self.ball_radius * 1e3:.1f} mm)")
+        """Refuse a half-width for which plate-side ball joints of two legs collide or cross
+        (:func:`ball_joints_apart`)."""
+        gaps = ball_joint_gaps(self.DB, self.U, self.half_width)
+        bad = gaps < 2 * self.ball_radius
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            i, i2 = LEG_PAIRS[k]
+            raise ParameterError(
+                f"half_width = {self.half_width[i] * 1e3:.1f} / {self.half_width[i2] * 1e3:.1f} mm makes "
+                f"the ball joints of legs {i + 1} and {i2 + 1} collide or cross on the plate (their "
+                f"segments are {gaps[k] * 1e3:.1f} mm apart, ball_radius = {self.ball_radius * 1e3:.1f} mm)")
 
     def _check_bars_reach(self) -> None:
-        """Refuse lengths with which the four legs cannot hold the plate together.
-
-        With the plate level (theta = 0) under the actuators' centroid, leg i reaches B_i iff
-        the distance from B_i to the circle of A_i (radius r_i about the axis through P_i)
-        brackets its bar length. Some plate height must suit all four legs at once.
-        """
-        lb = self.l.reshape(4, 2).mean(axis=1)
-        z = np.linspace(-2.0, 0.0, 401)[:, None] * float(np.max(self.r + lb))  # heights below the motors
-        centre = self.P.mean(axis=1) - self.DB.mean(axis=1)
-        e = centre[None, :, None] + self.DB[None] - self.P[None]  # (heights, 3, 4): B_i - P_i
-        e = np.repeat(e, len(z), axis=0)
-        e[:, 2, :] += z
-        eu = np.einsum("hai,ai->hi", e, self.U)
-        rho = np.linalg.norm(e - eu[:, None, :] * self.U[None], axis=1)
-        near = np.hypot(eu, rho - self.r)
-        far = np.hypot(eu, rho + self.r)
-        ok = (near <= lb) & (lb <= far)
+        """Refuse lengths with which the four legs cannot hold the plate together (:func:`bars_reach`)."""
+        ok = _reach_table(self.P, self.U, self.DB, self.r, self.l)  # (heights, 4)
         if not np.any(ok.all(axis=1)):
             worst = int(np.argmin(ok.sum(axis=0)))
+            lb = self.l.reshape(4, 2).mean(axis=1)
             raise ParameterError(
                 f"the legs cannot hold the plate: with r = {self.r[worst] * 1e3:.1f} mm and bars of "
                 f"{lb[worst] * 1e3:.1f} mm, leg {worst + 1} cannot reach B_{worst + 1} at any plate height "
@@ -199,9 +182,7 @@ class H4Params:
 
     def plate_ball_centres(self) -> np.ndarray:
         """B_ij - D at theta = 0, shape (4, 2, 3), in m (j = 1 is B_i + h u_i)."""
-        signs = np.array([1.0, -1.0])
-        return (self.DB.T[:, None, :]
-                + signs[None, :, None] * self.half_width[:, None, None] * self.U.T[:, None, :])
+        return ball_centres(self.DB, self.U, self.half_width)
 
     @property
     def forearm_dirs(self) -> np.ndarray:
@@ -251,18 +232,81 @@ class H4Params:
     __hash__ = None  # type: ignore[assignment]
 
 
-def segment_distance(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> float:
-    """Shortest distance between the segments p1-p2 and q1-q2 (m), for the collision checks."""
+def segment_distance(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Shortest distance between the segments p1-p2 and q1-q2 (m), for the collision checks;
+    broadcasts over leading axes: (..., 3) -> (...)."""
     d1, d2, r = p2 - p1, q2 - q1, p1 - q1
-    a, e, f = d1 @ d1, d2 @ d2, d2 @ r
-    c, b = d1 @ r, d1 @ d2
+    a, e, f = (d1 * d1).sum(-1), (d2 * d2).sum(-1), (d2 * r).sum(-1)
+    c, b = (d1 * r).sum(-1), (d1 * d2).sum(-1)
     denom = a * e - b * b
-    s = np.clip((b * f - c * e) / denom, 0.0, 1.0) if denom > 1e-18 * a * e else 0.0
-    t = (b * s + f) / e if e > 0 else 0.0
-    if t < 0.0 or t > 1.0:
-        t = float(np.clip(t, 0.0, 1.0))
-        s = float(np.clip((b * t - c) / a, 0.0, 1.0)) if a > 0 else 0.0
-    return float(np.linalg.norm(p1 + s * d1 - q1 - t * d2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(denom > 1e-18 * a * e, np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
+        t = np.where(e > 0, (b * s + f) / e, 0.0)
+        out = (t < 0.0) | (t > 1.0)
+        t = np.where(out, np.clip(t, 0.0, 1.0), t)
+        s = np.where(out, np.where(a > 0, np.clip((b * t - c) / a, 0.0, 1.0), 0.0), s)
+    return np.linalg.norm(p1 + s[..., None] * d1 - q1 - t[..., None] * d2, axis=-1)
+
+
+#: The pairs of legs (i, i2), i < i2, in the order the ball-joint check reports them.
+LEG_PAIRS = tuple((i, i2) for i in range(4) for i2 in range(i + 1, 4))
+_SIGNS = np.array([1.0, -1.0])
+#: Plate heights of the reach check, as fractions of the longest leg (r_i + l_i) below the motors.
+_HEIGHTS = np.linspace(-2.0, 0.0, 401)
+
+
+def ball_centres(DB: np.ndarray, U: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+    """B_ij - D at theta = 0 (j = 1 is B_i + h u_i), m: DB, U (..., 3, 4), half_width (..., 4)
+    -> (..., 4, 2, 3), leading design axes broadcast."""
+    DB, U, h = np.asarray(DB, dtype=float), np.asarray(U, dtype=float), np.asarray(half_width, dtype=float)
+    return (np.swapaxes(DB, -1, -2)[..., :, None, :]
+            + _SIGNS[:, None] * h[..., :, None, None] * np.swapaxes(U, -1, -2)[..., :, None, :])
+
+
+def ball_joint_gaps(DB: np.ndarray, U: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+    """Distances (m) between the plate-side segments B_i1 B_i2 of two legs, one per pair of
+    :data:`LEG_PAIRS`: (..., 6), leading design axes broadcast (a crossed pair has distance 0)."""
+    b = ball_centres(DB, U, half_width)
+    return np.stack([segment_distance(b[..., i, 0, :], b[..., i, 1, :], b[..., i2, 0, :], b[..., i2, 1, :])
+                     for i, i2 in LEG_PAIRS], axis=-1)
+
+
+def ball_joints_apart(DB: np.ndarray, U: np.ndarray, half_width: np.ndarray, ball_radius: float) -> np.ndarray:
+    """Whether the plate-side ball joints of every two legs stay two ball radii apart, the
+    segments B_i1 B_i2 of two legs included (the check of :class:`H4Params`, which raises where
+    this is False): bool (...) over leading design axes."""
+    return ~np.any(ball_joint_gaps(DB, U, half_width) < 2 * ball_radius, axis=-1)
+
+
+def _reach_table(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l: np.ndarray) -> np.ndarray:
+    """Whether leg i reaches B_i with the plate level under the actuators' centroid, at each
+    plate height of :data:`_HEIGHTS`: bool (..., heights, 4) (see :func:`bars_reach`)."""
+    P, U, DB = (np.asarray(x, dtype=float) for x in (P, U, DB))
+    r, l = np.asarray(r, dtype=float), np.asarray(l, dtype=float)
+    lb = l.reshape(l.shape[:-1] + (4, 2)).mean(axis=-1)
+    z = _HEIGHTS * np.max(r + lb, axis=-1)[..., None]  # (..., heights) below the motors
+    centre = P.mean(axis=-1) - DB.mean(axis=-1)
+    e = centre[..., :, None] + DB - P  # (..., 3, 4): B_i - P_i at z = 0
+    batch = np.broadcast_shapes(e.shape[:-2], U.shape[:-2], r.shape[:-1], lb.shape[:-1])
+    e = np.broadcast_to(e[..., None, :, :], batch + (len(_HEIGHTS), 3, 4)).copy()
+    e[..., 2, :] += z[..., None]
+    eu = np.einsum("...hai,...ai->...hi", e, U)
+    rho = np.linalg.norm(e - eu[..., None, :] * U[..., None, :, :], axis=-2)
+    r, lb = r[..., None, :], lb[..., None, :]
+    near, far = np.hypot(eu, rho - r), np.hypot(eu, rho + r)
+    return (near <= lb) & (lb <= far)
+
+
+def bars_reach(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l: np.ndarray) -> np.ndarray:
+    """Whether the four legs can hold the plate together (the check of :class:`H4Params`, which
+    raises where this is False): bool (...) over leading design axes of P, U, DB (..., 3, 4),
+    r (..., 4), l (..., 8).
+
+    With the plate level (theta = 0) under the actuators' centroid, leg i reaches B_i iff the
+    distance from B_i to the circle of A_i (radius r_i about the axis through P_i) brackets its
+    bar length. Some plate height must suit all four legs at once.
+    """
+    return np.any(np.all(_reach_table(P, U, DB, r, l), axis=-1), axis=-1)
 
 
 def symmetric_params(base: H4Params | None = None) -> H4Params:

@@ -15,6 +15,7 @@ K is NaN unless the status is 0 (:data:`h4pin.verdicts.OK`).
 
 from __future__ import annotations
 
+import functools
 import types
 import weakref
 from collections.abc import Iterable, Iterator
@@ -25,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from h4pin import _jit
-from h4pin.description.geometry import H4Geometry
+from h4pin.description.geometry import H4Geometry, forearms, spring_compliances
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.stiffness import core
@@ -66,17 +67,24 @@ _SIZE = 211
 # Geometry object
 
 
+def _inputs(f: Any, c: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The arguments of :func:`pack` from the fields ``f`` of :class:`H4Geometry` (the object,
+    or a mapping as :func:`h4pin.description.geometry.geometry_arrays` gives) and their spring
+    compliances ``c``."""
+    get = f.__getitem__ if isinstance(f, dict) else functools.partial(getattr, f)
+    return dict(P=get("P"), u=get("u"), A0=get("A0"), l=get("l"), lat=get("lat"), C0=get("C0"), b=get("b"),
+                c_ctrl=c["control"], c_bend=c["bending"], c_tors=c["torsion"], c_tens=c["tension"], q_lo=get("q_lo"),
+                q_hi=get("q_hi"), omega_lo=get("omega_lo"), omega_hi=get("omega_hi"),
+                bar_clearance=get("bar_clearance"))
+
+
 def _namespace(g: H4Geometry) -> types.SimpleNamespace:
     """The geometry object of :func:`prepare` for an :class:`h4pin.description.geometry.H4Geometry` (a loaded
     robot's ``h4.geometry``): its arrays, with the spring compliances per element."""
     if not g.ideal:
         raise ParameterError("the compiled kernel handles robots whose parallelograms are exact (H4Geometry.ideal); "
                              "use the numpy path (method='closed_form') for a toleranced robot")
-    c = g.compliances()
-    return types.SimpleNamespace(P=g.P, u=g.u, A0=g.A0, l=g.l, lat=g.lat, C0=g.C0, b=g.b, c_ctrl=c["control"],
-                                 c_bend=c["bending"], c_tors=c["torsion"], c_tens=c["tension"], q_lo=g.q_lo,
-                                 q_hi=g.q_hi, omega_lo=g.omega_lo, omega_hi=g.omega_hi,
-                                 bar_clearance=g.bar_clearance)
+    return types.SimpleNamespace(**_inputs(g, g.compliances()))
 
 
 _SHAPES = {"P": (4, 3), "u": (4, 3), "A0": (8, 3), "l": (8,), "lat": (8,), "C0": (2, 3), "b": (8, 3),
@@ -96,58 +104,123 @@ def _array(g: Any, name: str) -> np.ndarray:
     return value
 
 
+def _check(a: dict[str, Any]) -> None:
+    """The checks of :func:`prepare` on the arguments of :func:`pack` (leading robot axes allowed),
+    before packing."""
+    lat = a["lat"]
+    if not np.all((lat == 0) | (lat == 1)) or np.any(lat[..., 0::2] != lat[..., 1::2]):
+        raise ParameterError(f"geometry.lat must be 0 or 1, the same for both bars of a leg, got {lat.tolist()}")
+    if np.any(np.abs(np.linalg.norm(a["u"], axis=-1) - 1.0) > 1e-9):
+        raise ParameterError("geometry.u must hold unit vectors")
+    for name in ("l", "c_ctrl", "c_bend", "c_tors", "c_tens"):
+        if np.any(a[name] <= 0):
+            raise ParameterError(f"geometry.{name} must be > 0, got {a[name].tolist()}")
+    clearance = a["bar_clearance"]
+    if not np.all(np.isfinite(clearance)) or np.any(clearance < 0):
+        raise ParameterError(f"geometry.bar_clearance must be finite and >= 0, got {clearance!r}")
+
+
+def _check_packed(G: np.ndarray) -> None:
+    """The check of :func:`prepare` on packed vectors (..., _SIZE): P_i is the foot of the
+    perpendicular from A_i (m_i . u_i = 0)."""
+    m = G[..., _M:_M + 12].reshape(G.shape[:-1] + (4, 3))
+    u = G[..., _U:_U + 12].reshape(G.shape[:-1] + (4, 3))
+    if np.any(np.abs(np.einsum("...ia,...ia->...i", m, u)) > 1e-9 * np.linalg.norm(m, axis=-1)):
+        raise ParameterError("geometry.P must be the foot of the perpendicular from the forearm end A_i "
+                             "on the actuator axis (m_i . u_i = 0)")
+
+
+def pack(P: np.ndarray, u: np.ndarray, A0: np.ndarray, l: np.ndarray, lat: np.ndarray, C0: np.ndarray,
+         b: np.ndarray, c_ctrl: np.ndarray, c_bend: np.ndarray, c_tors: np.ndarray, c_tens: np.ndarray,
+         q_lo: np.ndarray, q_hi: np.ndarray, omega_lo: np.ndarray, omega_hi: np.ndarray,
+         bar_clearance: float | np.ndarray) -> np.ndarray:
+    """The packed vectors G (..., _SIZE) of the kernel from the attributes of :func:`prepare`
+    (shapes there), each with any leading robot axes (broadcast). No checks: :func:`prepare`
+    and :func:`pack_fields` check before packing."""
+    P, u, A0, l, C0, b = (np.asarray(x, dtype=float) for x in (P, u, A0, l, C0, b))
+    lat = np.asarray(lat, dtype=float)
+    rest = {"c_ctrl": c_ctrl, "c_bend": c_bend, "c_tors": c_tors, "c_tens": c_tens, "q_lo": q_lo, "q_hi": q_hi,
+            "omega_lo": omega_lo, "omega_hi": omega_hi}
+    batch = np.broadcast_shapes(*(np.shape(x)[:np.ndim(x) - len(_SHAPES[k])] for k, x in
+                                  {"P": P, "u": u, "A0": A0, "l": l, "lat": lat, "C0": C0, "b": b, **rest}.items()),
+                                np.shape(bar_clearance))
+    leg = np.repeat(np.arange(4), 2)
+    ul = u[..., leg, :]
+    v = A0 - P[..., leg, :]
+    m = 0.5 * (v[..., 0::2, :] + v[..., 1::2, :])
+    G = np.zeros(batch + (_SIZE,))
+
+    def put(offset: int, x: np.ndarray, trailing: int = 1) -> None:
+        x = np.asarray(x, dtype=float)
+        x = x.reshape(x.shape[:x.ndim - trailing] + (int(np.prod(x.shape[x.ndim - trailing:])),))
+        G[..., offset:offset + x.shape[-1]] = x
+
+    put(_P, P, 2)
+    put(_U, u, 2)
+    put(_V, v, 2)
+    put(_UV, np.cross(ul, v), 2)
+    put(_UVU, np.einsum("...na,...na->...n", ul, v)[..., None] * ul, 2)
+    put(_M, m, 2)
+    put(_UM, np.cross(u, m), 2)
+    put(_R2, np.einsum("...ia,...ia->...i", m, m))
+    put(_LL, 0.5 * (l[..., 0::2] + l[..., 1::2]))
+    put(_C0, C0, 2)
+    put(_BB, b, 2)
+    put(_BM, 0.5 * (b[..., 0::2, :] + b[..., 1::2, :]), 2)
+    put(_LAT, lat)
+    put(_CCTRL, c_ctrl)
+    put(_CBEND, c_bend)
+    put(_CTORS, c_tors)
+    put(_CTENS, c_tens)
+    put(_QLO, q_lo)
+    put(_QHI, q_hi)
+    put(_WLO, omega_lo)
+    put(_WHI, omega_hi)
+    G[..., _CLEAR] = bar_clearance
+    return G
+
+
+def pack_fields(fields: dict[str, Any]) -> np.ndarray:
+    """The packed vectors (..., _SIZE) of many robots at once, checked as :func:`prepare` checks
+    one: ``fields`` are those of :class:`H4Geometry` with leading robot axes, as
+    :func:`h4pin.description.geometry.geometry_arrays` gives them (robots with exact
+    parallelograms, as H4Params makes them). ``Kernel.from_packed(G[k])`` is then robot k's kernel."""
+    r = forearms(np.asarray(fields["A0"], dtype=float), np.asarray(fields["P"], dtype=float))[2]
+    a = _inputs(fields, spring_compliances(fields["springs"], r, fields["l"]))
+    _check(a)
+    G = pack(**a)
+    _check_packed(G)
+    return G
+
+
 class Kernel:
     """A geometry packed for the compiled kernel (see :func:`prepare`). Calling it on one pose is
     the fast single-pose path: ``K, q, condition, status = kernel(pose)``."""
 
+    geometry: Any
+    packed: np.ndarray
+
     def __init__(self, g: Any):
         self.geometry = g
-        a = {name: _array(g, name) for name in _SHAPES}
-        lat = a["lat"]
-        if not np.all((lat == 0) | (lat == 1)) or np.any(lat[0::2] != lat[1::2]):
-            raise ParameterError(f"geometry.lat must be 0 or 1, the same for both bars of a leg, got {lat.tolist()}")
-        u = a["u"]
-        if np.any(np.abs(np.linalg.norm(u, axis=1) - 1.0) > 1e-9):
-            raise ParameterError("geometry.u must hold unit vectors")
-        for name in ("l", "c_ctrl", "c_bend", "c_tors", "c_tens"):
-            if np.any(a[name] <= 0):
-                raise ParameterError(f"geometry.{name} must be > 0, got {a[name].tolist()}")
-        clearance = float(getattr(g, "bar_clearance", np.nan))
-        if not np.isfinite(clearance) or clearance < 0:
-            raise ParameterError(f"geometry.bar_clearance must be finite and >= 0, got {clearance!r}")
-        leg = np.repeat(np.arange(4), 2)
-        P = a["P"]
-        v = a["A0"] - P[leg]
-        m = 0.5 * (v[0::2] + v[1::2])
-        um = np.cross(u, m)
-        if np.any(np.abs(np.einsum("ia,ia->i", m, u)) > 1e-9 * np.linalg.norm(m, axis=1)):
-            raise ParameterError("geometry.P must be the foot of the perpendicular from the forearm end A_i "
-                                 "on the actuator axis (m_i . u_i = 0)")
-        G = np.zeros(_SIZE)
-        G[_P:_P + 12] = P.ravel()
-        G[_U:_U + 12] = u.ravel()
-        G[_V:_V + 24] = v.ravel()
-        G[_UV:_UV + 24] = np.cross(u[leg], v).ravel()
-        G[_UVU:_UVU + 24] = (np.einsum("na,na->n", u[leg], v)[:, None] * u[leg]).ravel()
-        G[_M:_M + 12] = m.ravel()
-        G[_UM:_UM + 12] = um.ravel()
-        G[_R2:_R2 + 4] = np.einsum("ia,ia->i", m, m)
-        G[_LL:_LL + 4] = 0.5 * (a["l"][0::2] + a["l"][1::2])
-        G[_C0:_C0 + 6] = a["C0"].ravel()
-        G[_BB:_BB + 24] = a["b"].ravel()
-        G[_BM:_BM + 12] = (0.5 * (a["b"][0::2] + a["b"][1::2])).ravel()
-        G[_LAT:_LAT + 8] = lat
-        G[_CCTRL:_CCTRL + 4] = a["c_ctrl"]
-        G[_CBEND:_CBEND + 4] = a["c_bend"]
-        G[_CTORS:_CTORS + 4] = a["c_tors"]
-        G[_CTENS:_CTENS + 8] = a["c_tens"]
-        G[_QLO:_QLO + 4] = a["q_lo"]
-        G[_QHI:_QHI + 4] = a["q_hi"]
-        G[_WLO:_WLO + 2] = a["omega_lo"]
-        G[_WHI:_WHI + 2] = a["omega_hi"]
-        G[_CLEAR] = clearance
+        a: dict[str, Any] = {name: _array(g, name) for name in _SHAPES}
+        a["bar_clearance"] = float(getattr(g, "bar_clearance", np.nan))
+        _check(a)
+        G = pack(**a)
+        _check_packed(G)
         G.setflags(write=False)
         self.packed = G
+
+    @classmethod
+    def from_packed(cls, G: np.ndarray) -> Kernel:
+        """The kernel of a vector packed by :func:`pack_fields` (a read-only copy; ``geometry``
+        is None)."""
+        packed = np.array(G, dtype=np.float64)
+        if packed.shape != (_SIZE,):
+            raise ParameterError(f"a packed kernel vector has shape ({_SIZE},), got {packed.shape}")
+        packed.setflags(write=False)
+        kern = cls.__new__(cls)
+        kern.geometry, kern.packed = None, packed
+        return kern
 
     def __call__(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
         """K (8, 8), q (4,), condition, status at one pose [x, y, z, theta] (m, rad)."""

@@ -152,117 +152,47 @@ def _base() -> H4Params:
 _XY = np.array([[1.0], [1.0], [0.0]])
 
 
+def _design_arrays(rows: np.ndarray, base: H4Params) -> dict[str, np.ndarray]:
+    """The changed :class:`h4pin.H4Params` fields of many design rows (n, 6), as H4Params holds
+    them, with a leading design axis: P, DB, DC (n, 3, 4 or 2), half_width, r, kc (n, 4), l (n, 8)."""
+    rows = np.asarray(rows, dtype=float).reshape(-1, len(VARIABLES))
+    h, r, l, layout, plate, kc = (rows[:, k] for k in range(6))
+    per = {"half_width": h, "r": r, "l": l, "kc": kc}
+    out = {name: np.repeat(v[:, None], 8 if name == "l" else 4, axis=1) for name, v in per.items()}
+    out["P"] = base.P * (1 + (layout[:, None, None] - 1) * _XY)
+    out["DB"] = base.DB * (1 + (plate[:, None, None] - 1) * _XY)
+    out["DC"] = base.DC * (1 + (plate[:, None, None] - 1) * _XY)
+    return out
+
+
 def params_of(row: np.ndarray, base: H4Params | None = None) -> H4Params:
     """The :class:`h4pin.H4Params` of one design row (raises ParameterError if it is invalid,
     e.g. ball joints colliding on the plate)."""
     base = base or _base()
-    h, r, l, layout, plate, kc = (float(v) for v in row)
-    P = base.P * (1 + (layout - 1) * _XY)
-    DB = base.DB * (1 + (plate - 1) * _XY)
-    DC = base.DC * (1 + (plate - 1) * _XY)
-    return base.replace(half_width=h, r=r, l=l, P=P, DB=DB, DC=DC, kc=kc)
-
-
-def _segment_distance(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """:func:`h4pin.description.params.segment_distance` over leading axes (..., 3) -> (...)."""
-    d1, d2, r = p2 - p1, q2 - q1, p1 - q1
-    a, e, f = (d1 * d1).sum(-1), (d2 * d2).sum(-1), (d2 * r).sum(-1)
-    c, b = (d1 * r).sum(-1), (d1 * d2).sum(-1)
-    denom = a * e - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(denom > 1e-18 * a * e, np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
-        t = np.where(e > 0, (b * s + f) / e, 0.0)
-        out = (t < 0.0) | (t > 1.0)
-        t = np.where(out, np.clip(t, 0.0, 1.0), t)
-        s = np.where(out, np.where(a > 0, np.clip((b * t - c) / a, 0.0, 1.0), 0.0), s)
-    return np.linalg.norm(p1 + s[..., None] * d1 - q1 - t[..., None] * d2, axis=-1)
+    return base.replace(**{name: v[0] for name, v in _design_arrays(row, base).items()})
 
 
 def _kernels(rows: np.ndarray) -> list[kernel.Kernel | None]:
-    """The packed kernels of many design rows at once (None for an invalid design): the same
-    vectors as ``kernel.prepare(geometry_from_params(params_of(row)))`` and the same validity as
-    :func:`params_of` (``tests/test_sweep.py`` holds them equal), vectorised over the designs:
-    15 us a design instead of 0.6 ms (``H4Params`` validation, ``H4Geometry``, ``Kernel``)."""
-    from h4pin.description.geometry import ACTUATOR_LIMITS, BAR_CLEARANCE, LATERAL_LIMITS, spring_compliances
-    from h4pin.description.params import LEG_LATERAL, SPRINGS
+    """The packed kernels of many design rows at once (None for an invalid design): the design
+    arrays of all rows (:func:`_design_arrays`), then the validity checks of H4Params
+    (:func:`~h4pin.description.params.ball_joints_apart`, :func:`~h4pin.description.params.bars_reach`),
+    the geometry (:func:`~h4pin.description.geometry.geometry_arrays`) and the packing
+    (:func:`h4pin.stiffness.kernel.pack_fields`), each over the design axis: the same as
+    ``kernel.prepare(geometry_from_params(params_of(row)))``, in a fraction of the time."""
+    from h4pin.description.geometry import geometry_arrays
+    from h4pin.description.params import SPRINGS, ball_joints_apart, bars_reach
 
     base = _base()
-    rows = np.asarray(rows, dtype=float).reshape(-1, len(VARIABLES))
-    n = len(rows)
-    h, r, l, layout, plate, kc = (np.ascontiguousarray(rows[:, k]) for k in range(6))
-    P = base.P[None] * (1 + (layout[:, None, None] - 1) * _XY)  # (n, 3, 4) as H4Params holds them
-    DB = base.DB[None] * (1 + (plate[:, None, None] - 1) * _XY)
-    DC = base.DC[None] * (1 + (plate[:, None, None] - 1) * _XY)
-    U = base.U
-    hw = np.repeat(h[:, None], 4, axis=1)
-    rr = np.repeat(r[:, None], 4, axis=1)
-    ll = np.repeat(l[:, None], 8, axis=1)
-    signs = np.array([1.0, -1.0])
-    # H4Params._check_ball_joints: the plate-side segments of two legs two ball radii apart.
-    ball = DB.transpose(0, 2, 1)[:, :, None, :] + signs[None, None, :, None] * hw[:, :, None, None] * U.T[None, :, None]
-    valid = np.ones(n, dtype=bool)
-    for i in range(4):
-        for i2 in range(i + 1, 4):
-            gap = _segment_distance(ball[:, i, 0], ball[:, i, 1], ball[:, i2, 0], ball[:, i2, 1])
-            valid &= ~(gap < 2 * base.ball_radius)
-    # H4Params._check_bars_reach: some plate height at which all four legs reach.
-    lb = ll.reshape(n, 4, 2).mean(axis=2)
-    z = np.linspace(-2.0, 0.0, 401)[None, :] * np.max(rr + lb, axis=1)[:, None]  # (n, heights)
-    centre = P.mean(axis=2) - DB.mean(axis=2)  # (n, 3)
-    e = np.repeat((centre[:, :, None] + DB - P)[:, None], z.shape[1], axis=1)  # (n, heights, 3, 4)
-    e[:, :, 2, :] += z[:, :, None]
-    eu = np.einsum("nhai,ai->nhi", e, U)
-    rho = np.linalg.norm(e - eu[:, :, None, :] * U[None, None], axis=2)
-    near, far = np.hypot(eu, rho - rr[:, None]), np.hypot(eu, rho + rr[:, None])
-    valid &= np.any(np.all((near <= lb[:, None]) & (lb[:, None] <= far), axis=2), axis=1)
-    # geometry_from_params, then the packing of kernel.Kernel.
-    Pg, u = P.transpose(0, 2, 1), U.T  # (n, 4, 3), (4, 3)
-    a = base.forearm_dirs.T
-    A = Pg + rr[:, :, None] * a[None]
-    A0 = (A[:, :, None, :] + signs[None, None, :, None] * hw[:, :, None, None] * u[None, :, None, :]).reshape(n, 8, 3)
-    C0 = DC.transpose(0, 2, 1)  # (n, 2, 3)
-    b = (ball - C0[:, LEG_LATERAL][:, :, None, :]).reshape(n, 8, 3)
-    r_geo = np.linalg.norm(A0.reshape(n, 4, 2, 3).mean(axis=2) - Pg, axis=2)  # H4Geometry.r
+    d = _design_arrays(rows, base)
+    valid = (ball_joints_apart(d["DB"], base.U, d["half_width"], base.ball_radius)
+             & bars_reach(d["P"], base.U, d["DB"], d["r"], d["l"]))
+    d = {name: v[valid] for name, v in d.items()}
     springs = {name: getattr(base, name) for name in SPRINGS}
-    springs["kc"] = np.repeat(kc[:, None], 4, axis=1)
-    c = spring_compliances(springs, r_geo, ll)
-    leg = np.repeat(np.arange(4), 2)
-    v = A0 - Pg[:, leg]
-    m = 0.5 * (v[:, 0::2] + v[:, 1::2])
-    G = np.zeros((n, kernel._SIZE))
-    G[:, kernel._P:kernel._P + 12] = Pg.reshape(n, 12)
-    G[:, kernel._U:kernel._U + 12] = u.ravel()
-    G[:, kernel._V:kernel._V + 24] = v.reshape(n, 24)
-    G[:, kernel._UV:kernel._UV + 24] = np.cross(u[leg][None], v).reshape(n, 24)
-    G[:, kernel._UVU:kernel._UVU + 24] = (np.einsum("na,kna->kn", u[leg], v)[:, :, None] * u[leg][None]).reshape(n, 24)
-    G[:, kernel._M:kernel._M + 12] = m.reshape(n, 12)
-    G[:, kernel._UM:kernel._UM + 12] = np.cross(u[None], m).reshape(n, 12)
-    G[:, kernel._R2:kernel._R2 + 4] = np.einsum("kia,kia->ki", m, m)
-    G[:, kernel._LL:kernel._LL + 4] = 0.5 * (ll[:, 0::2] + ll[:, 1::2])
-    G[:, kernel._C0:kernel._C0 + 6] = C0.reshape(n, 6)
-    G[:, kernel._BB:kernel._BB + 24] = b.reshape(n, 24)
-    G[:, kernel._BM:kernel._BM + 12] = (0.5 * (b[:, 0::2] + b[:, 1::2])).reshape(n, 12)
-    G[:, kernel._LAT:kernel._LAT + 8] = np.repeat(LEG_LATERAL, 2)
-    G[:, kernel._CCTRL:kernel._CCTRL + 4] = c["control"]
-    G[:, kernel._CBEND:kernel._CBEND + 4] = c["bending"]
-    G[:, kernel._CTORS:kernel._CTORS + 4] = c["torsion"]
-    G[:, kernel._CTENS:kernel._CTENS + 8] = c["tension"]
-    G[:, kernel._QLO:kernel._QLO + 4] = ACTUATOR_LIMITS[0]
-    G[:, kernel._QHI:kernel._QHI + 4] = ACTUATOR_LIMITS[1]
-    G[:, kernel._WLO:kernel._WLO + 2] = LATERAL_LIMITS[0]
-    G[:, kernel._WHI:kernel._WHI + 2] = LATERAL_LIMITS[1]
-    G[:, kernel._CLEAR] = BAR_CLEARANCE
-    out: list[kernel.Kernel | None] = []
-    for d in range(n):
-        if not valid[d]:
-            out.append(None)
-            continue
-        kern = kernel.Kernel.__new__(kernel.Kernel)  # packed here, checked by the test against prepare
-        packed = G[d].copy()
-        packed.setflags(write=False)
-        kern.geometry, kern.packed = None, packed
-        out.append(kern)
-    return out
+    springs["kc"] = d["kc"]
+    G = kernel.pack_fields(geometry_arrays(d["P"], base.U, base.forearm_dirs, d["r"], d["l"], d["half_width"],
+                                           d["DB"], d["DC"], springs))
+    packed = iter(G)
+    return [kernel.Kernel.from_packed(next(packed)) if ok else None for ok in valid]
 
 
 def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
