@@ -23,6 +23,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     """The compile steps (name, call), in order of first need."""
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
+    from h4pin.stiffness import kernel
     from h4pin.stiffness.api import compliance
     from h4pin.stiffness.kernel import SERIAL_BELOW
     from h4pin.stiffness.vector import VECTOR_FROM
@@ -36,11 +37,14 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     def pose() -> np.ndarray:
         return cf.centre_pose(state["h4"])
 
+    def geometry() -> object:
+        return kernel.for_geometry(state["h4"].geometry)
+
     return [("configuration (h4pin.load)", configuration),
             ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
-            ("small-batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
-            ("batch kernel", lambda: compliance(state["h4"], np.tile(pose(), (SERIAL_BELOW, 1)), method="kernel")),
+            ("small-batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (2, 1)))),
+            ("threaded batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (SERIAL_BELOW, 1)))),
             ("vector kernel", lambda: compliance(state["h4"], np.tile(pose(), (VECTOR_FROM, 1)), method="kernel")),
             ("atlas and sweep fields", _study_fields)]
 
