@@ -2,7 +2,7 @@
 """First use without waiting for the compiler: which compiled functions are ready, their
 interpreted twins, and the background warm-up.
 
-h4pin's compiled code (numba, cached on disk) takes 20-40 s to compile the first time, once per
+h4pin's compiled code (numba, cached on disk) takes 2-3 minutes to compile the first time, once per
 install. Until it is in numba's cache, the calls that need it do not wait:
 
 * :func:`h4pin.compliance` (``method="auto"``) takes the numpy reference backend, vectorised

@@ -437,7 +437,7 @@ def note_first_compile(argv: list[str]) -> None:
         from h4pin.stiffness import kernel
 
         if not kernel.cached():
-            typer.echo("h4pin: first run: compiling the compliance kernels (20-40 s, once; cached afterwards; "
+            typer.echo("h4pin: first run: compiling the compliance kernels (1-3 min, once; cached afterwards; "
                        "`h4pin warmup` does it ahead)", err=True)
 
 
