@@ -77,7 +77,7 @@ def rank1(M, s, u, v):
 
 @njit(cache=True, nogil=True, inline="always")
 def invert_scaled(M, lw, Y):
-    """Y = M1^-1 by Gauss-Jordan with partial pivoting (M is overwritten); returns the 1-norm
+    """Y = M1^-1 by Gauss-Jordan with partial pivoting (M is overwritten: garbage after); returns the 1-norm
     condition number of the scaled M1 (rows over l_n, columns 3..7 over the mean bar length),
     ``inf`` for an exactly singular M1 (Y is then garbage)."""
     lmean = 0.0
@@ -104,20 +104,25 @@ def invert_scaled(M, lw, Y):
                 p = a
         if big == 0.0:
             return np.inf
+        # M's columns before c are zero below the diagonal, and its column c is not read
+        # again: the row operations on M touch its trailing columns only.
         if p != c:
-            for e in range(8):
+            for e in range(c, 8):
                 M[c, e], M[p, e] = M[p, e], M[c, e]
+            for e in range(8):
                 Y[c, e], Y[p, e] = Y[p, e], Y[c, e]
         inv = 1.0 / M[c, c]
-        for e in range(8):
+        for e in range(c + 1, 8):
             M[c, e] *= inv
+        for e in range(8):
             Y[c, e] *= inv
         for a in range(8):
             if a != c:
                 f = M[a, c]
                 if f != 0.0:
-                    for e in range(8):
+                    for e in range(c + 1, 8):
                         M[a, e] -= f * M[c, e]
+                    for e in range(8):
                         Y[a, e] -= f * Y[c, e]
     ninv = 0.0
     for n in range(8):
