@@ -79,7 +79,7 @@ def instruction_mix(kern: kernel.Kernel) -> dict[str, collections.Counter]:
             ("kernel._batch", kernel._batch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
                                               np.empty((1, 4, 8, 8)), False, np.empty((1, 4, 4)), False, 256)),
             ("vector._vbatch", vector._vbatch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
-                                                vector.TASK))):
+                                                vector._NO_TERMS, False, vector.TASK))):
         opts = {k: v for k, v in fn.targetoptions.items() if k not in ("cache", "nopython")}
         fresh = numba.njit(**opts)(fn.py_func)
         fresh(*args)

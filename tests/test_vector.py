@@ -10,7 +10,7 @@ import pytest
 import h4pin
 from h4pin import verdicts
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import kernel, numpy_backend, vector
+from h4pin.stiffness import core, kernel, numpy_backend, vector
 
 IDEAL = [name for name in h4pin.VARIANTS if h4pin.load(name).geometry.ideal]
 
@@ -49,7 +49,7 @@ def raw(h4: h4pin.H4, x: np.ndarray, model: str) -> tuple[kernel.KernelResult, k
     a, b = kernel._empty(n, False, False), kernel._empty(n, False, False)
     kernel._batch(x, packed, code, a.K, a.q, a.condition, a.status, np.empty((1, 4, 8, 8)), False,
                   np.empty((1, 4, 4)), False, kernel._BLOCK)
-    vector._vbatch(x, packed, code, b.K, b.q, b.condition, b.status, vector.TASK)
+    vector._vbatch(x, packed, code, b.K, b.q, b.condition, b.status, vector._NO_TERMS, False, vector.TASK)
     return a, b
 
 
@@ -75,6 +75,30 @@ def test_fuzz_equals_reference(robot, model):
     assert np.all(np.isnan(res.K[~ok]))
     np.testing.assert_allclose(res.q, ref.q, rtol=0, atol=1e-12)  # NaN where unreachable, in both
     assert np.all(cond_rel(res.condition[ok], ref.condition[ok]) <= np.maximum(1e-10, 1e-16 * ref.condition[ok]))
+
+
+@pytest.mark.parametrize("model", ["paper", "consistent"])
+def test_terms_equal_reference(proto, model):
+    """With terms: each of the four terms as the numpy reference's (same bound as K), K their
+    sum, NaN terms on refused poses; and the public batch call (which takes this kernel from
+    VECTOR_FROM poses) gives the same terms."""
+    x = fuzz(proto, 3000, seed=11)
+    ref = numpy_backend.backend(proto, x, model, True)
+    res = vector.compliance_batch(proto.geometry, x, model, terms=True)
+    np.testing.assert_array_equal(res.status, ref.status)
+    ok = ref.status == verdicts.OK
+    assert ok.sum() > 300
+    b = bound(ref.condition[ok])
+    for t in range(4):
+        scale = np.max(np.abs(ref.matrix[ok]), axis=(-2, -1))
+        err = np.max(np.abs(res.terms[ok, t] - ref.terms[ok, t]), axis=(-2, -1)) / scale
+        assert np.all(err <= b), (t, float(np.max(err / b)))
+    np.testing.assert_allclose(res.terms[ok].sum(axis=1), res.K[ok], rtol=0,
+                               atol=1e-15 * np.max(np.abs(res.K[ok])))
+    assert np.all(np.isnan(res.terms[~ok]))
+    api = h4pin.compliance(proto, x[ok][:200], model, terms=True, elements=False)
+    for t, name in enumerate(("control", "bending", "torsion", "tension")):
+        np.testing.assert_array_equal(api.terms[name], res.terms[ok][:200, t])
 
 
 def test_singular_poses_are_found(sym):
@@ -144,7 +168,7 @@ def test_model_is_checked(proto):
 
 
 def test_atan2_matches_numpy():
-    """The branch-free atan2 of the angle phase: within 2 ulp of numpy's over eight decades of
+    """The branch-free atan2 of the kernels: within 2 ulp of numpy's over eight decades of
     both arguments and all four quadrants, numpy's signed zeros on the axes, NaN in -> NaN out."""
     from numba import njit
 
@@ -152,7 +176,7 @@ def test_atan2_matches_numpy():
     def many(y, x):
         out = np.empty_like(y)
         for k in range(y.size):
-            out[k] = vector.atan2(y[k], x[k])
+            out[k] = core.atan2(y[k], x[k])
         return out
 
     rng = np.random.default_rng(7)

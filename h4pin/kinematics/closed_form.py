@@ -73,8 +73,8 @@ def as_poses(pose: np.ndarray | list | tuple, name: str = "pose") -> np.ndarray:
         raise PoseError(f"{name} must be numbers [x, y, z, theta], got {pose!r}") from None
     if x.ndim not in (1, 2) or x.shape[-1] != 4:
         raise PoseError(f"{name} must have shape (4,) or (N, 4) as [x, y, z, theta], got shape {x.shape}")
-    bad = ~np.all(np.isfinite(x), axis=-1)
-    if np.any(bad):
+    if not np.isfinite(x).all():
+        bad = ~np.all(np.isfinite(x), axis=-1)
         index = int(np.argmax(bad)) if x.ndim == 2 else None
         raise PoseError(f"{name} has non-finite entries: {x[index] if index is not None else x}", index)
     return x

@@ -54,6 +54,7 @@ BACKENDS = {"kernel": "h4pin.stiffness.vector", "closed_form": "h4pin.stiffness.
             "pinocchio": "h4pin.stiffness.pinocchio"}
 METHODS = ("auto", *BACKENDS)
 _BATCH_CHUNK = 8192
+_F64 = np.dtype(np.float64)
 
 __all__ = ["BACKENDS", "METHODS", "MODELS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS", "Compliance",
            "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
@@ -65,14 +66,15 @@ class LazyTerms(Mapping):
     A compliance result carries one, so that a user who does not look at the terms does not pay
     for them (time, and 2 KB a pose)."""
 
-    def __init__(self, compute: Callable[[], Mapping[str, np.ndarray]]):
-        self._compute: Callable[[], Mapping[str, np.ndarray]] | None = compute
+    def __init__(self, compute: Callable[..., Mapping[str, np.ndarray]], *args: Any):
+        self._compute: Callable[..., Mapping[str, np.ndarray]] | None = compute
+        self._args = args
         self._data: dict[str, np.ndarray] | None = None
 
     def _get(self) -> dict[str, np.ndarray]:
         if self._data is None:
-            self._data = dict(self._compute())  # type: ignore[misc]
-            self._compute = None
+            self._data = dict(self._compute(*self._args))  # type: ignore[misc]
+            self._compute, self._args = None, ()
         return self._data
 
     @property
@@ -131,6 +133,24 @@ class Compliance:
         ``__init__`` (the same fields, in order)."""
         obj = object.__new__(cls)
         obj.__dict__.update(zip(_FIELDS, values, strict=True))
+        return obj
+
+    @classmethod
+    def _one(cls, matrix: np.ndarray, terms: Mapping[str, np.ndarray], pose: np.ndarray, q: np.ndarray, model: str,
+             condition: float, elements: Elements | None) -> Compliance:
+        """:meth:`_of` for one regular pose (status 0, valid None), field by field (a third of
+        the time of ``dict.update``; :data:`_FIELDS` is checked against it in the tests)."""
+        obj = object.__new__(cls)
+        d = obj.__dict__
+        d["matrix"] = matrix
+        d["terms"] = terms
+        d["pose"] = pose
+        d["q"] = q
+        d["model"] = model
+        d["condition"] = condition
+        d["status"] = 0
+        d["valid"] = None
+        d["elements"] = elements
         return obj
 
     @property
@@ -260,38 +280,42 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
     """
     _check_options(model, on_error, method)
     active = _elements_of(h4, elements)
-    if (on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype == np.float64
-            and math.isfinite(sum(pose.tolist()))):
-        # One regular pose: straight to its backend (a bad pose goes the long way for its error).
+    if on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype is _F64:
+        # One pose: straight to its backend (a pose it refuses goes the long way for its error).
         x = pose.copy()
         x.setflags(write=False)
-        K, q, cond, status, T = _one_pose(h4, x, model, method, bool(terms))
-        if status == OK and (T is not None or not terms):
-            extra = None if active is None else element_model.element_terms(h4.geometry, x, active)
+        want = bool(terms)
+        g = h4.geometry
+        if method == "auto" and g.ideal and kernel.ONE.ready:  # the compiled one-pose kernel
+            K, q = np.empty((8, 8)), np.empty(4)
+            T = np.empty((4, 8, 8)) if want else kernel.NO_TERMS
+            cond, status = kernel.one_into(x, kernel.for_geometry(g).packed, MODELS.index(model), want, K, q, T)
+            if not want:
+                T = None
+        elif math.isfinite(sum(pose.tolist())):
+            K, q, cond, status, T = _one_pose(h4, x, model, method, want)
+        else:
+            status = INVALID
+        if status == OK and (T is not None or not want):
+            extra = None if active is None else element_model.element_terms(g, x, active)
             if extra:
                 K = K + sum(extra.values())
             if T is None:
-                parts: Mapping[str, np.ndarray] = _lazy_terms(h4, x, model, method, active)
+                parts: Mapping[str, np.ndarray] = LazyTerms(_terms_of, h4, x, model, method, active)
             else:
                 parts = dict(zip(TERMS, T, strict=True))
                 parts.update(extra or {})
-            return Compliance._of(K, parts, x, q, model, cond, 0, None, active)
-    res = _compliance(h4, pose, model, on_error, method, bool(terms), active)
-    if terms:
-        return res
-    return Compliance._of(*(_lazy_terms(h4, res.pose, model, method, active) if f == "terms" else getattr(res, f)
-                            for f in _FIELDS))
+            return Compliance._one(K, parts, x, q, model, cond, active)
+    return _compliance(h4, pose, model, on_error, method, bool(terms), active)
 
 
 def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[Any, Any, float, int, Any]:
     """K, q, condition, status and the terms (4, 8, 8) (None when not asked for, or when this
-    path does not give them) of one finite pose on ``method``'s backend, with the compiled
-    one-pose calls where they apply (no batch set-up); status -1 when the closed form refuses
-    the pose before Pinocchio runs (the long way then names the reason)."""
+    path does not give them) of one finite pose on ``method``'s backend (other than the compiled
+    one-pose kernel, which :func:`compliance` calls itself), with the compiled one-pose calls
+    where they apply (no batch set-up); status -1 when the closed form refuses the pose before
+    Pinocchio runs (the long way then names the reason)."""
     code = MODELS.index(model)
-    if method == "auto" and h4.geometry.ideal and kernel.ONE.ready:
-        out, q, cond, status = kernel._one(x, kernel.for_geometry(h4.geometry).packed, code, terms)
-        return out[0], q, cond, status, out[1:] if terms else None
     if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready and not terms:
         from h4pin.stiffness import pinocchio as pinocchio_backend
 
@@ -301,10 +325,10 @@ def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[
     return r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0]), None if r.terms is None else r.terms[0]
 
 
-def _lazy_terms(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> LazyTerms:
-    """The terms of a result, computed on first access by the same backend (``x`` is the result's
-    own read-only pose)."""
-    return LazyTerms(lambda: _compliance(h4, x, model, "nan", method, True, active).terms)
+def _terms_of(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> Mapping[str, np.ndarray]:
+    """The terms of a result (:class:`LazyTerms`), computed on first access by the same backend
+    (``x`` is the result's own read-only pose)."""
+    return _compliance(h4, x, model, "nan", method, True, active).terms
 
 
 def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: bool,
@@ -315,14 +339,14 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
         finite = np.atleast_1d(np.all(np.isfinite(np.atleast_2d(x)), axis=1))
     else:
         x = cf.as_poses(pose).copy()
-        finite = np.ones(len(x) if x.ndim == 2 else 1, dtype=bool)
+        finite = None  # every pose (as_poses refuses the others)
     x.setflags(write=False)
     single = x.ndim == 1
     xb = x[None] if single else x
     n = len(xb)
     names = TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
     backend = _backend(h4, method)
-    idx_all = np.flatnonzero(finite)
+    idx_all = np.arange(n) if finite is None else np.flatnonzero(finite)
     if len(idx_all) == n and (backend.__module__ in (kernel.__name__, BACKENDS["kernel"]) or n <= _BATCH_CHUNK):
         # Every pose finite, one call: the backend's arrays are the result's (no copy; the kernel
         # is never cut in chunks: its memory is its output's).
@@ -357,10 +381,12 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
         k = int(np.argmax(status != OK))
         raise_for_status(status, [None] * k + [_detail(h4, xb[k], int(status[k]), cond[k], k)], batch=not single)
     valid = None if on_error == "raise" else status == OK
+    parts: Mapping[str, np.ndarray] = (LazyTerms(_terms_of, h4, x, model, method, active) if out_terms is None
+                                       else {t: v[0] for t, v in out_terms.items()} if single else out_terms)
     if single:
-        return Compliance(matrix[0], None if out_terms is None else {t: v[0] for t, v in out_terms.items()}, x, q[0],
-                          model, float(cond[0]), int(status[0]), None if valid is None else np.array(valid[0]), active)
-    return Compliance(matrix, out_terms, x, q, model, cond, status, valid, active)
+        return Compliance._of(matrix[0], parts, x, q[0], model, float(cond[0]), int(status[0]),
+                              None if valid is None else np.array(valid[0]), active)
+    return Compliance._of(matrix, parts, x, q, model, cond, status, valid, active)
 
 
 def _detail(h4, x: np.ndarray, status: int, cond: float, k: int) -> str:

@@ -16,6 +16,7 @@ K is NaN unless the status is 0 (:data:`h4pin.verdicts.OK`).
 from __future__ import annotations
 
 import functools
+import math
 import types
 import weakref
 from collections.abc import Iterable, Iterator
@@ -229,8 +230,10 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        out, q, cond, status = _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False)
-        return out[0], q, cond, status
+        K, q = np.empty((8, 8)), np.empty(4)
+        cond, status = _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False, K, q,
+                            NO_TERMS)
+        return K, q, cond, status
 
 
 def prepare(g: H4Geometry | Kernel | Any) -> Kernel:
@@ -297,7 +300,7 @@ def _inverse_geometry(px, py, pz, th, G, qo, A, B):
         cphi, sphi = alpha / rho, beta / rho
         cq = cphi * cd + sphi * sd  # q = phi - delta
         sq = sphi * cd - cphi * sd
-        qo[i] = np.arctan2(sq, cq)
+        qo[i] = core.atan2(sq, cq)  # libm's atan2 costs 2-3x more
         for j in range(2):
             n = 2 * i + j
             for a in range(3):
@@ -321,7 +324,7 @@ def _limits_and_bars(th, G, qo, A, B):
     c2 = G[_CLEAR] * G[_CLEAR]
     for n1 in range(6):
         for n2 in range(2 * (n1 // 2) + 2, 8):
-            if core.seg_dist2(A, B, n1, n2) < c2:
+            if not core.lines_apart(A, B, n1, n2, c2) and core.seg_dist2(A, B, n1, n2) < c2:
                 return 3
     return 0
 
@@ -353,7 +356,7 @@ def _m1(px, py, pz, th, G, A, B, W, lw, M, g):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _pose(px, py, pz, th, G, P, C, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e):
+def _pose(px, py, pz, th, G, P, C, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d):
     """One pose: fills K (8, 8), qo (4,), optionally T (4, 8, 8) and Jo (4, 4); returns
     (condition, status). P (4, 3) and C (20,) are the actuator points and the spring compliances
     of the packed G (:func:`_views`); the other arrays are scratch
@@ -364,7 +367,7 @@ def _pose(px, py, pz, th, G, P, C, model, K, qo, T, want_terms, Jo, want_jac, A,
     status = _limits_and_bars(th, G, qo, A, B)
     _m1(px, py, pz, th, G, A, B, W, lw, M, g)
     return core.finish(M, W, lw, A, P, g, C[0:4], C[4:8], C[8:12], C[12:20], model, status, K, T, want_terms, Jo,
-                       want_jac, Y, Gc, ws, d, e)
+                       want_jac, Y, Gc, ws, d)
 
 
 @njit(cache=True, nogil=True)
@@ -373,37 +376,61 @@ def _views(G):
     return G[_P:_P + 12].reshape(4, 3), G[_CCTRL:_CTENS + 8]
 
 
-@njit(cache=True, nogil=True)
-def _one(x, G, model, want_terms):
-    """One pose, with one scratch allocation: ``out`` (5, 8, 8) (K, then the four terms) with the
-    terms, else (1, 8, 8) (K), q, condition, status (two arrays to box instead of three)."""
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH)
+def _one(x, G, model, want_terms, K, q, T):
+    """One pose x (4,) into K (8, 8), q (4,) and, with ``want_terms``, T (4, 8, 8) (else T is not
+    touched: :data:`NO_TERMS`), with one scratch allocation; returns (condition, status), status
+    5 (K, q NaN) for a pose that is not finite. The caller allocates the outputs: a compiled
+    function that returns arrays pays for boxing them (about 0.3 us each)."""
+    px, py, pz, th = x[0], x[1], x[2], x[3]
+    if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz) and math.isfinite(th)):
+        K[:, :] = np.nan
+        q[:] = np.nan
+        return np.nan, 5
     n = core.SCRATCH + 16
-    buf = np.empty(n if want_terms else n + 256)
-    out = np.empty((5 if want_terms else 1, 8, 8))
-    q = np.empty(4)
-    T = out[1:5] if want_terms else buf[n:n + 256].reshape(4, 8, 8)
-    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch_in(buf)
+    buf = np.empty(n)
+    A, B, W, lw, M, Y, Gc, ws, g, d = core.scratch_in(buf)
     J = buf[core.SCRATCH:n].reshape(4, 4)
     P, C = _views(G)
-    cond, status = _pose(x[0], x[1], x[2], x[3], G, P, C, model, out[0], q, T, want_terms, J, False, A, B, W, lw, M,
-                         Y, Gc, ws, g, d, e)
-    return out, q, cond, status
+    return _pose(px, py, pz, th, G, P, C, model, K, q, T, want_terms, J, False, A, B, W, lw, M, Y, Gc, ws, g, d)
+
+
+#: The T argument of :func:`_one` without terms (never written).
+NO_TERMS = np.empty((4, 8, 8))
+
+_ONE_ENTRY: list[Any] = []
+
+
+def one_into(x: np.ndarray, G: np.ndarray, code: int, want_terms: bool, K: np.ndarray, q: np.ndarray,
+             T: np.ndarray) -> tuple[float, int]:
+    """:func:`_one` for the argument types of :func:`h4pin.compliance`'s one-pose path (x a
+    read-only C float64 (4,) copy, the packed G, outputs from ``np.empty``), through the compiled
+    entry point of that one overload: it skips the dispatcher's typing of seven arguments (0.14 of
+    about 2 us). The first call goes through the dispatcher and looks the overload up by the types
+    it was given; a numba without ``entry_point`` keeps the dispatcher."""
+    if _ONE_ENTRY:
+        return _ONE_ENTRY[0](x, G, code, want_terms, K, q, T)
+    out = _one(x, G, code, want_terms, K, q, T)
+    sig = tuple(numba.typeof(a) for a in (x, G, code, want_terms, K, q, T))
+    overload = _one.overloads.get(sig)
+    _ONE_ENTRY.append(getattr(overload, "entry_point", None) or _one)
+    return out
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _block(poses, lo, hi, G, P, C, model, K, q, cond, status, T, want_terms, J, want_jac):
     """Poses lo..hi-1 with one set of scratch arrays."""
-    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+    A, B, W, lw, M, Y, Gc, ws, g, d = core.scratch()
     for p in range(lo, hi):
         tp = T[p] if want_terms else T[0]
         jp = J[p] if want_jac else J[0]
         c, s = _pose(poses[p, 0], poses[p, 1], poses[p, 2], poses[p, 3], G, P, C, model, K[p], q[p], tp,
-                     want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d, e)
+                     want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d)
         cond[p] = c
         status[p] = s
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH, parallel=True)
 def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
     n = poses.shape[0]
     nblocks = (n + block - 1) // block
@@ -413,7 +440,7 @@ def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, bloc
                want_jac)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH)
 def _batch_serial(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
     """:func:`_batch` without threads, for small batches (no thread start-up, no wake-up latency)."""
     P, C = _views(G)
@@ -508,8 +535,10 @@ def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
     """:meth:`Kernel.__call__` without its checks, for a caller that has checked them: ``x`` a
     finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent). Returns K, q, condition,
     status and the terms (4, 8, 8) (None unless ``terms``)."""
-    out, q, cond, status = _one(x, kern.packed, code, terms)
-    return out[0], q, cond, status, out[1:] if terms else None
+    K, q = np.empty((8, 8)), np.empty(4)
+    T = np.empty((4, 8, 8)) if terms else NO_TERMS
+    cond, status = _one(x, kern.packed, code, terms, K, q, T)
+    return K, q, cond, status, T if terms else None
 
 
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -557,16 +586,18 @@ def threads() -> int:
     return numba.get_num_threads()
 
 
-_KERNELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_KERNELS: dict[int, Kernel] = {}
 
 
 def for_geometry(g: H4Geometry) -> Kernel:
     """The packed kernel of a loaded robot's geometry, made once per geometry (a read-only cache
-    keyed by the immutable :class:`h4pin.H4Geometry`, outside it; threads may share it)."""
-    kern = _KERNELS.get(g)
+    keyed by the immutable :class:`h4pin.H4Geometry`, outside it; threads may share it). Keyed by
+    ``id(g)`` and dropped when ``g`` is (a plain dict lookup: a WeakKeyDictionary costs 0.6 us)."""
+    kern = _KERNELS.get(id(g))
     if kern is None:
         kern = prepare(g)
-        _KERNELS[g] = kern
+        if _KERNELS.setdefault(id(g), kern) is kern:
+            weakref.finalize(g, _KERNELS.pop, id(g), None)
     return kern
 
 

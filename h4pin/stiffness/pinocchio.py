@@ -57,7 +57,7 @@ def _pose(J, H, F, I, model, want_terms):  # noqa: E741  # pragma: no cover - co
             T6[r, c] = vd[r]
             T6[3 + r, c] = J[3 + r, col]
     Tinv = np.linalg.inv(T6)
-    A, B, W, lw, M, Y, Gc, ws, g, d, e = core.scratch()
+    A, B, W, lw, M, Y, Gc, ws, g, d = core.scratch()
     for n in range(8):
         for r in range(3):
             B[n, r] = pts[3 + n, r]
@@ -86,7 +86,7 @@ def _pose(J, H, F, I, model, want_terms):  # noqa: E741  # pragma: no cover - co
     terms = np.empty((4, 8, 8))
     Jo = np.empty((4, 4))
     cond, status = core.finish(M, W, lw, A, P, g, c_ctrl, c_bend, c_tors, c_tens, model, 0, K, terms, want_terms,
-                               Jo, True, Y, Gc, ws, d, e)
+                               Jo, True, Y, Gc, ws, d)
     return K, terms, cond, status, Jo
 
 

@@ -4,12 +4,20 @@
 code (AVX2 / AVX-512 FMA).
 
 Layout: the poses are cut into blocks of at most :data:`LANES` poses. Every intermediate of a
-block is one row of a block-local scratch array ``S`` (rows x lanes, structure of arrays), and
-every innermost loop runs over the lanes with no branch: the verdicts are masks (0.0 / 1.0 rows),
-the pivot choice and the row swaps of the Gauss-Jordan inversion are lane selects, and the
-status is set at the end from the masks in the kernel's order (unreachable, limits, interfering
-bars, singular). Loops over bars, legs and matrix entries sit outside the lane loop or have a
-constant trip count (LLVM unrolls them before vectorising).
+block is one row of a block-local array (rows x lanes, structure of arrays): S (the pose, the
+legs, the bars, the masks), M and Y (M1 and its inverse, 8 x 8 x lanes), R (the inversion's
+scratch), F and U (the factors of eq. 30 and the upper triangles of its terms). Every innermost
+loop runs over the lanes with no branch: the verdicts are masks (0.0 / 1.0 rows), the pivot
+choice and the row swaps of the Gauss-Jordan inversion are lane selects, and the status is set at
+the end from the masks in the kernel's order (unreachable, limits, interfering bars, singular).
+Loops over bars, legs and matrix entries sit outside the lane loop or have a constant trip count
+(LLVM unrolls them before vectorising).
+
+What keeps a lane loop vectorised: it writes rows of one array and reads rows of others (at most
+one runtime alias check per pair of arrays), or reads and writes rows of one array at distances
+LLVM can see. A loop that wrote a row of S while reading 17 others at row indices that are
+runtime loop variables stayed scalar (the bar check: 140 -> 25 ns a pose once its mask moved to
+an array of its own; the inversion: 300 -> 220 ns once its pivot rows did).
 
 Why runtime-length lane loops and not 4 or 8 fixed lanes: numba compiles with LLVM's SLP
 vectoriser off (``NUMBA_SLP_VECTORIZE=0``, a process-wide setting), and LLVM unrolls a loop of 4
@@ -17,7 +25,8 @@ or 8 constant trips completely before the loop vectoriser runs, so fixed tiny la
 scalar. A lane loop whose trip count is known only at run time (``nl <= LANES``) is vectorised by
 the loop vectoriser (8 doubles per zmm register on AVX-512, interleaved).
 
-The transcendental calls (cos, sin of theta; atan2 for q) stay scalar, in their own lane loops.
+cos and sin of theta stay scalar libm calls, in a lane loop of their own; atan2 for q is
+:func:`h4pin.stiffness.core.atan2`, a branch-free polynomial that vectorises.
 ``fastmath`` is limited to flags that keep NaN and infinity semantics (:data:`FASTMATH`): the
 verdicts are comparisons that must see NaN.
 
@@ -27,9 +36,9 @@ Same packed geometry as the kernel (:func:`h4pin.stiffness.kernel.prepare`), sam
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -66,19 +75,24 @@ from h4pin.stiffness.kernel import (
 )
 from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, SINGULAR_COND, UNREACHABLE
 
-#: Poses per block (lanes of the scratch rows).
-LANES = 32
-#: Poses per parallel task (one scratch allocation per task).
+#: Poses per block (lanes of the scratch rows): of 16, 32, 64 and 128 lanes, 64 was the fastest
+#: on one core (435, 426, 390, 449 ns a pose); a block's arrays (about 400 KB) stay in L2.
+LANES = 64
+#: Most poses in a parallel task (one scratch allocation per task); a smaller batch is cut into as
+#: many tasks as there are threads (:func:`_task`), so that 512 poses use both cores.
 TASK = 1024
-#: fastmath flags: contraction to FMA, reciprocal, reassociation, no signed zeros; never
-#: ``nnan`` / ``ninf`` (the verdicts compare NaN).
-FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
+#: fastmath flags (:data:`h4pin.stiffness.core.FASTMATH`): never ``nnan`` / ``ninf``.
+FASTMATH = core.FASTMATH
 
 _SING = SINGULAR_COND
 _CONSISTENT = core.CONSISTENT
 _ST_OK, _ST_UNR, _ST_LIM, _ST_BAR, _ST_SING = OK, UNREACHABLE, LIMITS, INTERFERENCE, SINGULAR
 
-# Rows of the block scratch S (rows x LANES).
+# Rows of the block scratch S (rows x LANES). M1 and its inverse live in arrays of their own (M, Y:
+# 8 x 8 x LANES) and the inversion's per-lane scratch in R (below): a lane loop that writes one
+# array while it reads another vectorises with at most a runtime check per pair of arrays, while
+# a loop that writes rows of S that it also reads at a distance LLVM cannot see (a row index that
+# is a runtime loop variable) stays scalar.
 _X, _Y, _Z, _TH, _CT, _SN = 0, 1, 2, 3, 4, 5
 _CQ = 6  # (4,) cos q_i
 _SQ = 10  # (4,) sin q_i
@@ -87,31 +101,38 @@ _B = 38  # (8, 3) B_n
 _W = 62  # (8, 3) w_n = B_n - A_n
 _AA = 86  # (8,) |w_n|^2
 _LW = 94  # (8,) |w_n|
-_MM = 102  # (8, 8) M1, overwritten by the inversion
-_YY = 166  # (8, 8) M1^-1
-_GG = 230  # (8,) g_n
-_DD = 238  # (8,) d_n
-_EE = 246  # (8,) e_n
-_GC = 254  # (8, 4) Gc[a, i] = M1^-1 M2 M3
-_GS = 286  # (8, 4) (c_ctrl + c_bend)_i Gc[a, i]
-_TU = 318  # (8, 4) c_tors_i sum_j d_n Y[a, n]
-_TV = 350  # (8, 4) sum_j e_n l_n Y[a, n]
-_YS = 382  # (8, 8) c_tens_n l_n^2 Y[a, n]
-_KK = 446  # (8, 8) K
-_UNR = 510  # masks (0.0 / 1.0): a leg cannot reach
-_LIM = 511  # outside the joint limits
-_HIT = 512  # two bars interfere
-_ZERO = 513  # a zero pivot (exactly singular M1)
-_BIG = 514  # pivot search
-_PIV = 515
-_NRM = 516  # 1-norm of the scaled M1
-_LM = 517  # mean bar length
-_CND = 518  # condition number
-_PR = 520  # (16,) pivot row of M, Y
-_OR = 536  # (16,) row c of M, Y before the swap
-_IA = 552  # (8,) 1 / |w_n|^2
-_Q = 560  # (4,) q_i
-_ROWS = 564
+_GG = 102  # (8,) g_n
+_DD = 110  # (8,) d_n
+_UNR = 118  # masks (0.0 / 1.0): a leg cannot reach
+_LIM = 119  # outside the joint limits
+_HIT = 120  # two bars interfere
+_CND = 121  # condition number
+_IA = 122  # (8,) 1 / |w_n|^2
+_Q = 130  # (4,) q_i
+_ROWS = 134
+
+# Rows of the factors F of eq. 30 (rows x LANES; :func:`_eq30`).
+_GC = 0  # (8, 4) Gc[a, i] = M1^-1 M2 M3
+_GS = 32  # (8, 4) (c_ctrl + c_bend)_i Gc[a, i]
+_TV = 64  # (8, 4) v[a, i] = sum_j d_n Y[a, n]
+_TU = 96  # (8, 4) c_tors_i v[a, i]
+_YS = 128  # (8, 8) c_tens_n l_n^2 Y[a, n]
+_FROWS = 192
+
+# Rows of the inversion's scratch R (rows x LANES).
+_PIV = 0  # pivot row of the current column
+_ZERO = 1  # a zero pivot (exactly singular M1)
+_INV = 2  # 1 / pivot
+_NRM = 3  # 1-norm of the scaled M1
+_NRI = 4  # 1-norm of the scaled M1^-1
+_LM = 5  # mean bar length
+_ILM = 6  # 1 / mean bar length
+_PM = 8  # (8,) the pivot row of M, scaled
+_PY = 16  # (8,) the pivot row of Y, scaled
+_OM = 24  # (8,) row c of M before the swap
+_OY = 32  # (8,) row c of Y before the swap
+_IL = 40  # (8,) 1 / |w_n|
+_RROWS = 48
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -124,37 +145,6 @@ def _max(a, b):
 def _min(a, b):
     """numba's ``min(a, b)`` for floats (``b if b < a else a``) as a select."""
     return b if b < a else a
-
-
-# Cephes' atan (Moshier): a rational approximation on |u| <= 0.66 after one range reduction,
-# relative error below 2e-16 (tests/test_vector.py: at most 2 ulp against numpy's arctan2).
-_AP = (-8.750608600031904122785e-01, -1.615753718733365076637e+01, -7.500855792314704667340e+01,
-       -1.228866684490136173410e+02, -6.485021904942025371773e+01)
-_AQ = (2.485846490142306297962e+01, 1.650270098316988542046e+02, 4.328810604912902668951e+02,
-       4.853903996359136964868e+02, 1.945506571482613964425e+02)
-_MOREBITS = 6.123233995736765886130e-17  # pi/2 - float(pi/2)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def atan2(y, x):
-    """``np.arctan2(y, x)`` for finite or NaN floats, branch-free (selects and one rational
-    polynomial, so that a lane loop of it vectorises; libm's atan2 is a scalar call). Within 2
-    ulp of numpy's; signed zeros as numpy's; ``atan2(0, 0) = 0``."""
-    ax, ay = abs(x), abs(y)
-    swap = ay > ax
-    num = ax if swap else ay
-    den = ay if swap else ax
-    t = num / den if den != 0.0 else 0.0  # den = max(|x|, |y|): 0 only at the origin
-    big = t > 0.66
-    u = (t - 1.0) / (t + 1.0) if big else t
-    z = u * u
-    p = (((_AP[0] * z + _AP[1]) * z + _AP[2]) * z + _AP[3]) * z + _AP[4]
-    q = ((((z + _AQ[0]) * z + _AQ[1]) * z + _AQ[2]) * z + _AQ[3]) * z + _AQ[4]
-    r = u + u * (z * p / q)
-    r = (0.25 * np.pi + (r + 0.5 * _MOREBITS)) if big else r
-    r = (0.5 * np.pi + _MOREBITS) - r if swap else r
-    r = (np.pi + 2.0 * _MOREBITS) - r if (x < 0.0 or (x == 0.0 and math.copysign(1.0, x) < 0.0)) else r
-    return math.copysign(r, y)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
@@ -218,10 +208,10 @@ def _legs(G, nl, S):
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _angles(G, nl, S):
-    """q by :func:`atan2` (vectorised) and the joint-limit mask."""
+    """q by :func:`core.atan2` (vectorised) and the joint-limit mask."""
     for i in range(4):
         for l in range(nl):
-            S[_Q + i, l] = atan2(S[_SQ + i, l], S[_CQ + i, l])
+            S[_Q + i, l] = core.atan2(S[_SQ + i, l], S[_CQ + i, l])
     lo0, lo1, lo2, lo3 = G[_QLO], G[_QLO + 1], G[_QLO + 2], G[_QLO + 3]
     hi0, hi1, hi2, hi3 = G[_QHI], G[_QHI + 1], G[_QHI + 2], G[_QHI + 3]
     w0, w1, v0, v1 = G[_WLO], G[_WLO + 1], G[_WHI], G[_WHI + 1]
@@ -234,9 +224,11 @@ def _angles(G, nl, S):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _bars(G, nl, S):
+def _bars(G, nl, S, H):
     """Bar vectors w_n, |w_n|^2, |w_n|, and the interference mask: the least distance between the
-    axes of two bars of different legs below the clearance (:func:`core.seg_dist2`, branch-free)."""
+    axes of two bars of different legs below the clearance (:func:`core.seg_dist2`, branch-free).
+    The mask builds up in H (LANES,), an array apart from S: read-modify-write of a row of S in
+    the pair loop, with its 17 other rows read, kept LLVM from vectorising it (138 -> 23 ns a pose)."""
     for n in range(8):
         for l in range(nl):
             wx = S[_B + 3 * n, l] - S[_A + 3 * n, l]
@@ -249,7 +241,7 @@ def _bars(G, nl, S):
             S[_LW + n, l] = np.sqrt(aa)
     c2 = G[_CLEAR] * G[_CLEAR]
     for l in range(nl):
-        S[_HIT, l] = 0.0
+        H[l] = 0.0
     for n1 in range(6):
         for n2 in range(2 * (n1 // 2) + 2, 8):
             for l in range(nl):
@@ -277,12 +269,15 @@ def _bars(G, nl, S):
                 x = rx + d1x * s - d2x * t
                 y = ry + d1y * s - d2y * t
                 z = rz + d1z * s - d2z * t
-                S[_HIT, l] = 1.0 if x * x + y * y + z * z < c2 else S[_HIT, l]
+                H[l] = 1.0 if x * x + y * y + z * z < c2 else H[l]
+    for l in range(nl):
+        S[_HIT, l] = H[l]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _matrix(G, nl, S):
-    """M1 (eq. 6), g_n, and the torsion factors d_n, e_n (:func:`core.torsion_factors`)."""
+def _matrix(G, nl, S, M):
+    """M1 (eq. 6) into M (8, 8, LANES), g_n, and the torsion factors d_n
+    (:func:`core.torsion_factors`; e_n l_n = d_n)."""
     for i in range(4):
         px, py, pz = G[_P + 3 * i], G[_P + 3 * i + 1], G[_P + 3 * i + 2]
         ux, uy, uz = G[_U + 3 * i], G[_U + 3 * i + 1], G[_U + 3 * i + 2]
@@ -295,16 +290,15 @@ def _matrix(G, nl, S):
                 bx, by, bz = S[_B + 3 * n, l], S[_B + 3 * n + 1, l], S[_B + 3 * n + 2, l]
                 sx, sy, sz = S[_X, l] - bx, S[_Y, l] - by, S[_Z, l] - bz
                 ct, st = S[_CT, l], S[_SN, l]
-                r = _MM + 8 * n
-                S[r, l], S[r + 1, l], S[r + 2, l] = wx, wy, wz
-                S[r + 3, l] = wy * sz - wz * sy
-                S[r + 4, l] = wz * sx - wx * sz
-                S[r + 5, l] = wx * sy - wy * sx
+                M[n, 0, l], M[n, 1, l], M[n, 2, l] = wx, wy, wz
+                M[n, 3, l] = wy * sz - wz * sy
+                M[n, 4, l] = wz * sx - wx * sz
+                M[n, 5, l] = wx * sy - wy * sx
                 tx = sx + ct * c0x - st * c0y
                 ty = sy + st * c0x + ct * c0y
                 mk = wx * ty - wy * tx
-                S[r + 6, l] = mk if k == 0 else 0.0
-                S[r + 7, l] = mk if k == 1 else 0.0
+                M[n, 6, l] = mk if k == 0 else 0.0
+                M[n, 7, l] = mk if k == 1 else 0.0
             for l in range(nl):  # a loop of its own: fewer runtime alias checks
                 wx, wy, wz = S[_W + 3 * n, l], S[_W + 3 * n + 1, l], S[_W + 3 * n + 2, l]
                 qx = px - S[_A + 3 * n, l]
@@ -325,163 +319,223 @@ def _matrix(G, nl, S):
                 dn = (S[_W + 3 * n, l] * (qy * rz - qz * ry) + S[_W + 3 * n + 1, l] * (qz * rx - qx * rz)
                       + S[_W + 3 * n + 2, l] * (qx * ry - qy * rx))
                 S[_DD + n, l] = dn
-                S[_EE + n, l] = dn / S[_LW + n, l]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _swap(nl, S, X, c, need, e0):
-    """Swap rows c and PIV of X (8, 8, lanes), columns e0..7, by lane selects: the new row c
-    gathers in _PR + 1..8, the old one waits in _OR; each loop writes one side only (few runtime
-    alias checks)."""
-    for l in range(nl):
-        for e in range(e0, 8):
-            S[_OR + e, l] = X[c, e, l]
-    for l in range(nl):
-        for e in range(e0, 8):
-            S[_PR + 1 + e, l] = S[_OR + e, l]
-    for a in range(c + 1, 8):
-        if not (need >> a) & 1:
-            continue
-        for l in range(nl):
-            swap = S[_PIV, l] == a
-            for e in range(e0, 8):
-                S[_PR + 1 + e, l] = X[a, e, l] if swap else S[_PR + 1 + e, l]
-        for l in range(nl):
-            swap = S[_PIV, l] == a
-            for e in range(e0, 8):
-                X[a, e, l] = S[_OR + e, l] if swap else X[a, e, l]
-    for l in range(nl):
-        for e in range(e0, 8):
-            X[c, e, l] = S[_PR + 1 + e, l]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _column(nl, S, M, Y, c):
-    """Step c of the Gauss-Jordan inversion of M into Y (8, 8, lanes each): the pivot choice and
-    the row swap are lane selects (:func:`core.invert_scaled`)."""
+def _column(nl, R, M, Y, c):
+    """Step c of the Gauss-Jordan inversion of M into Y (8, 8, lanes each), partial pivoting per
+    lane (:func:`core.invert_scaled`): the pivot row is gathered by lane selects into R (scaled
+    there), the row it leaves takes row c as it was inside the elimination (a select per entry),
+    so that every lane loop reads the rows it does not write from R. M's columns before c are zero
+    below the diagonal and its column c is not read again: only its trailing columns are kept."""
     for l in range(nl):  # pivot search: the first largest |M[a, c]|, a >= c
-        S[_BIG, l] = abs(M[c, c, l])
-        S[_PIV, l] = c
-    for a in range(c + 1, 8):
-        for l in range(nl):
+        big = abs(M[c, c, l])
+        p = float(c)
+        for a in range(c + 1, 8):
             v = abs(M[a, c, l])
-            better = v > S[_BIG, l]
-            S[_BIG, l] = v if better else S[_BIG, l]
-            S[_PIV, l] = a if better else S[_PIV, l]
+            better = v > big
+            big = v if better else big
+            p = a if better else p
+        R[_PIV, l] = p
+        R[_ZERO, l] = 1.0 if big == 0.0 else R[_ZERO, l]
+    for e in range(c, 8):
+        for l in range(nl):
+            old = M[c, e, l]
+            v = old
+            p = R[_PIV, l]
+            for a in range(c + 1, 8):
+                v = M[a, e, l] if p == a else v
+            R[_OM + e, l] = old
+            R[_PM + e, l] = v
+    for e in range(8):
+        for l in range(nl):
+            old = Y[c, e, l]
+            v = old
+            p = R[_PIV, l]
+            for a in range(c + 1, 8):
+                v = Y[a, e, l] if p == a else v
+            R[_OY + e, l] = old
+            R[_PY + e, l] = v
     for l in range(nl):
-        S[_ZERO, l] = 1.0 if S[_BIG, l] == 0.0 else S[_ZERO, l]
-    need = 0  # bit a: some lane pivots on row a (a uniform branch: no lane work when unused)
-    for l in range(nl):
-        need |= 1 << int(S[_PIV, l])
-    if need != 1 << c:
-        _swap(nl, S, M, c, need, c)  # M's columns before c are zero below the diagonal
-        _swap(nl, S, Y, c, need, 0)
-    for l in range(nl):
-        S[_PR, l] = 1.0 / M[c, c, l]
-    for l in range(nl):  # M's column c is not read again: only its trailing columns
-        inv = S[_PR, l]
-        for e in range(c + 1, 8):
-            M[c, e, l] *= inv
-    for l in range(nl):
-        inv = S[_PR, l]
-        for e in range(8):
-            Y[c, e, l] *= inv
-    for a in range(8):
-        if a != c:
-            for l in range(nl):
-                f = M[a, c, l]
-                for e in range(8):
-                    Y[a, e, l] -= f * Y[c, e, l]
-            for l in range(nl):
-                f = M[a, c, l]
-                for e in range(c + 1, 8):
-                    M[a, e, l] -= f * M[c, e, l]
+        R[_INV, l] = 1.0 / R[_PM + c, l]
+    for e in range(c + 1, 8):
+        for l in range(nl):
+            m = R[_PM + e, l] * R[_INV, l]
+            R[_PM + e, l] = m
+            M[c, e, l] = m
+    for e in range(8):
+        for l in range(nl):
+            y = R[_PY + e, l] * R[_INV, l]
+            R[_PY + e, l] = y
+            Y[c, e, l] = y
+    for a in range(c):  # rows above c: never the pivot
+        for l in range(nl):
+            f = M[a, c, l]
+            for e in range(c + 1, 8):
+                M[a, e, l] -= f * R[_PM + e, l]
+        for l in range(nl):
+            f = M[a, c, l]
+            for e in range(8):
+                Y[a, e, l] -= f * R[_PY + e, l]
+    for a in range(c + 1, 8):  # rows below: the pivot's old place takes row c as it was
+        for l in range(nl):
+            sw = R[_PIV, l] == a
+            f = R[_OM + c, l] if sw else M[a, c, l]
+            for e in range(8):
+                Y[a, e, l] = (R[_OY + e, l] if sw else Y[a, e, l]) - f * R[_PY + e, l]
+        for l in range(nl):
+            sw = R[_PIV, l] == a
+            f = R[_OM + c, l] if sw else M[a, c, l]
+            for e in range(c + 1, 8):
+                M[a, e, l] = (R[_OM + e, l] if sw else M[a, e, l]) - f * R[_PM + e, l]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _invert(nl, S, M, Y):
-    """Y = M1^-1 by Gauss-Jordan with partial pivoting, per lane (:func:`core.invert_scaled`):
-    pivot choice and row swaps are lane selects. Fills the condition row (inf when singular)."""
+def _invert(nl, S, M, Y, R):
+    """Y = M1^-1 (M is overwritten) by Gauss-Jordan with partial pivoting, per lane
+    (:func:`core.invert_scaled`). Fills the condition row of S (inf when singular)."""
     for l in range(nl):
         lm = 0.0
         for n in range(8):
             lm += S[_LW + n, l]
-        S[_LM, l] = lm / 8.0
-        S[_NRM, l] = 0.0
-        S[_ZERO, l] = 0.0
-    for c in range(8):
+        R[_LM, l] = lm / 8.0
+        R[_ILM, l] = 8.0 / lm
+        R[_NRM, l] = 0.0
+        R[_NRI, l] = 0.0
+        R[_ZERO, l] = 0.0
+    for n in range(8):
+        for l in range(nl):
+            R[_IL + n, l] = 1.0 / S[_LW + n, l]
+    for c in range(8):  # the 1-norm of the scaled M1 (rows over l_n, columns 3.. over the mean)
         for l in range(nl):
             s = 0.0
             for n in range(8):
-                s += abs(S[_MM + 8 * n + c, l]) / S[_LW + n, l]
-            s = s / S[_LM, l] if c >= 3 else s
-            S[_NRM, l] = _max(S[_NRM, l], s)
+                s += abs(M[n, c, l]) * R[_IL + n, l]
+            s = s * R[_ILM, l] if c >= 3 else s
+            R[_NRM, l] = _max(R[_NRM, l], s)
     for a in range(8):
         for e in range(8):
             for l in range(nl):
-                M[a, e, l] = S[_MM + 8 * a + e, l]
                 Y[a, e, l] = 1.0 if a == e else 0.0
-    _column(nl, S, M, Y, 0)
-    _column(nl, S, M, Y, 1)
-    _column(nl, S, M, Y, 2)
-    _column(nl, S, M, Y, 3)
-    _column(nl, S, M, Y, 4)
-    _column(nl, S, M, Y, 5)
-    _column(nl, S, M, Y, 6)
-    _column(nl, S, M, Y, 7)
-    for a in range(8):
-        for e in range(8):
-            for l in range(nl):
-                S[_YY + 8 * a + e, l] = Y[a, e, l]
-    for l in range(nl):
-        S[_BIG, l] = 0.0  # the 1-norm of the scaled M1^-1
-    for n in range(8):
+    _column(nl, R, M, Y, 0)
+    _column(nl, R, M, Y, 1)
+    _column(nl, R, M, Y, 2)
+    _column(nl, R, M, Y, 3)
+    _column(nl, R, M, Y, 4)
+    _column(nl, R, M, Y, 5)
+    _column(nl, R, M, Y, 6)
+    _column(nl, R, M, Y, 7)
+    for n in range(8):  # the 1-norm of the scaled M1^-1
         for l in range(nl):
-            lm = S[_LM, l]
+            lm = R[_LM, l]
             s = 0.0
             for a in range(8):
-                s += abs(S[_YY + 8 * a + n, l]) * (lm if a >= 3 else 1.0)
-            S[_BIG, l] = _max(S[_BIG, l], s * S[_LW + n, l])
+                s += abs(Y[a, n, l]) * (lm if a >= 3 else 1.0)
+            R[_NRI, l] = _max(R[_NRI, l], s * S[_LW + n, l])
     for l in range(nl):
-        cond = S[_NRM, l] * S[_BIG, l]
+        cond = R[_NRM, l] * R[_NRI, l]
         cond = cond if cond == cond else np.inf
-        S[_CND, l] = np.inf if S[_ZERO, l] != 0.0 else cond
+        S[_CND, l] = np.inf if R[_ZERO, l] != 0.0 else cond
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _eq30(G, model, nl, S):
-    """K of eq. 30 (:func:`core.eq30`): the 16 rank-one terms, entry by entry over the lanes."""
+def _eq30(G, model, nl, S, Y, F, U, KB, TB, want_terms):
+    """K of eq. 30 (:func:`core.eq30`) into KB (8, 8, LANES), with ``want_terms`` the four terms
+    into TB (4, 8, 8, LANES) (K their sum). Each term is a symmetric matrix times the load mask of
+    its column (``"paper"``: 1 in columns 0, 1, 2, 5 of the actuator terms): the upper triangles go
+    to U (4, 8, 8, LANES), then every entry is assembled from them (36 entries of sums instead of
+    64; a loop that wrote K[a, c] and K[c, a] together would not vectorise)."""
     for a in range(8):
         for i in range(4):
             cs = G[_CCTRL + i] + G[_CBEND + i]
             ct = G[_CTORS + i]
             n0, n1 = 2 * i, 2 * i + 1
             for l in range(nl):
-                y0, y1 = S[_YY + 8 * a + n0, l], S[_YY + 8 * a + n1, l]
+                y0, y1 = Y[a, n0, l], Y[a, n1, l]
                 gc = y0 * S[_GG + n0, l] + y1 * S[_GG + n1, l]
-                S[_GC + 4 * a + i, l] = gc
-                S[_GS + 4 * a + i, l] = cs * gc
-                S[_TU + 4 * a + i, l] = ct * (y0 * S[_DD + n0, l] + y1 * S[_DD + n1, l])
-                S[_TV + 4 * a + i, l] = (y0 * S[_EE + n0, l] * S[_LW + n0, l] + y1 * S[_EE + n1, l] * S[_LW + n1, l])
+                v = y0 * S[_DD + n0, l] + y1 * S[_DD + n1, l]
+                F[_GC + 4 * a + i, l] = gc
+                F[_GS + 4 * a + i, l] = cs * gc
+                F[_TV + 4 * a + i, l] = v
+                F[_TU + 4 * a + i, l] = ct * v
         for n in range(8):
             cn = G[_CTENS + n]
             for l in range(nl):
-                S[_YS + 8 * a + n, l] = cn * S[_LW + n, l] * S[_LW + n, l] * S[_YY + 8 * a + n, l]
+                F[_YS + 8 * a + n, l] = cn * S[_LW + n, l] * S[_LW + n, l] * Y[a, n, l]
+    if want_terms:
+        cc0, cc1, cc2, cc3 = G[_CCTRL], G[_CCTRL + 1], G[_CCTRL + 2], G[_CCTRL + 3]
+        cb0, cb1, cb2, cb3 = G[_CBEND], G[_CBEND + 1], G[_CBEND + 2], G[_CBEND + 3]
+        for a in range(8):
+            for c in range(a, 8):
+                for l in range(nl):
+                    g0 = F[_GC + 4 * a, l] * F[_GC + 4 * c, l]
+                    g1 = F[_GC + 4 * a + 1, l] * F[_GC + 4 * c + 1, l]
+                    g2 = F[_GC + 4 * a + 2, l] * F[_GC + 4 * c + 2, l]
+                    g3 = F[_GC + 4 * a + 3, l] * F[_GC + 4 * c + 3, l]
+                    t2 = 0.0
+                    for i in range(4):
+                        t2 += F[_TU + 4 * a + i, l] * F[_TV + 4 * c + i, l]
+                    t3 = 0.0
+                    for n in range(8):
+                        t3 += F[_YS + 8 * a + n, l] * Y[c, n, l]
+                    U[0, a, c, l] = cc0 * g0 + cc1 * g1 + cc2 * g2 + cc3 * g3
+                    U[1, a, c, l] = cb0 * g0 + cb1 * g1 + cb2 * g2 + cb3 * g3
+                    U[2, a, c, l] = t2
+                    U[3, a, c, l] = t3
+        for a in range(8):
+            for c in range(8):
+                load = 1.0 if (model == _CONSISTENT or c < 3 or c == 5) else 0.0
+                i, j = (a, c) if a <= c else (c, a)
+                for l in range(nl):
+                    t0 = load * U[0, i, j, l]
+                    t1 = load * U[1, i, j, l]
+                    t2 = U[2, i, j, l]
+                    t3 = U[3, i, j, l]
+                    TB[0, a, c, l] = t0
+                    TB[1, a, c, l] = t1
+                    TB[2, a, c, l] = t2
+                    TB[3, a, c, l] = t3
+                    KB[a, c, l] = t0 + t1 + t2 + t3
+        return
+    for a in range(8):
+        for c in range(a, 8):
+            for l in range(nl):
+                act = 0.0
+                rest = 0.0
+                for i in range(4):
+                    act += F[_GS + 4 * a + i, l] * F[_GC + 4 * c + i, l]
+                    rest += F[_TU + 4 * a + i, l] * F[_TV + 4 * c + i, l]
+                for n in range(8):
+                    rest += F[_YS + 8 * a + n, l] * Y[c, n, l]
+                U[0, a, c, l] = act
+                U[1, a, c, l] = rest
     for a in range(8):
         for c in range(8):
             load = 1.0 if (model == _CONSISTENT or c < 3 or c == 5) else 0.0
+            i, j = (a, c) if a <= c else (c, a)
             for l in range(nl):
-                k = 0.0
-                for i in range(4):
-                    k += S[_GS + 4 * a + i, l] * S[_GC + 4 * c + i, l] * load
-                    k += S[_TU + 4 * a + i, l] * S[_TV + 4 * c + i, l]
-                for n in range(8):
-                    k += S[_YS + 8 * a + n, l] * S[_YY + 8 * c + n, l]
-                S[_KK + 8 * a + c, l] = k
+                KB[a, c, l] = load * U[0, i, j, l] + U[1, i, j, l]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _store(p0, nl, S, K, qo, cond, status):
+def _transpose(p0, nl, B, X):
+    """X[p0 + l] = B[:, :, l] (X: (N, 8, 8) pose-major, B (8, 8, LANES) lane-major), in tiles of 8
+    lanes x 8 entries that stay in L1 (a lane at a time over the 64 entries: 1.5x slower)."""
+    for l0 in range(0, nl, 8):
+        for a in range(8):
+            for l in range(l0, min(l0 + 8, nl)):
+                for c in range(8):
+                    X[p0 + l, a, c] = B[a, c, l]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _store(p0, nl, S, KB, TB, K, qo, cond, status, T, want_terms):
+    """The verdicts (in the kernel's order: unreachable, limits, interfering bars, singular), q,
+    the condition, K (and the terms), NaN where the verdict is not 0."""
+    _transpose(p0, nl, KB, K)
+    if want_terms:
+        for t in range(4):
+            _transpose(p0, nl, TB[t], T[:, t])
     for l in range(nl):
         p = p0 + l
         if S[_UNR, l] != 0.0:
@@ -503,52 +557,68 @@ def _store(p0, nl, S, K, qo, cond, status):
             cond[p] = S[_CND, l]
             for i in range(4):
                 qo[p, i] = S[_Q + i, l]
-        if st == _ST_OK:
-            for a in range(8):
-                for c in range(8):
-                    K[p, a, c] = S[_KK + 8 * a + c, l]
-        else:
-            for a in range(8):
-                for c in range(8):
-                    K[p, a, c] = np.nan
+        if st != _ST_OK:
+            K[p] = np.nan
+            if want_terms:
+                T[p] = np.nan
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-def _run(poses, start, stop, G, model, K, qo, cond, status):
+def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms):
     """Poses start .. stop - 1, in blocks of at most LANES lanes of one scratch S (allocated here,
     so that its shape is a compile-time constant in every lane loop)."""
     S = np.empty((_ROWS, LANES))
     M = np.empty((8, 8, LANES))
     Y = np.empty((8, 8, LANES))
+    R = np.empty((_RROWS, LANES))
+    H = np.empty(LANES)
+    F = np.empty((_FROWS, LANES))
+    U = np.empty((4, 8, 8, LANES))
+    TB = np.empty((4 if want_terms else 1, 8, 8, LANES))
     for p0 in range(start, stop, LANES):
         nl = min(LANES, stop - p0)
         _load(poses, p0, nl, S)
         _legs(G, nl, S)
         _angles(G, nl, S)
-        _bars(G, nl, S)
-        _matrix(G, nl, S)
-        _invert(nl, S, M, Y)
-        _eq30(G, model, nl, S)
-        _store(p0, nl, S, K, qo, cond, status)
+        _bars(G, nl, S, H)
+        _matrix(G, nl, S, M)
+        _invert(nl, S, M, Y, R)
+        _eq30(G, model, nl, S, Y, F, U, M, TB, want_terms)  # M1 is spent: M takes K
+        _store(p0, nl, S, M, TB, K, qo, cond, status, T, want_terms)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, parallel=True)
-def _vbatch(poses, G, model, K, qo, cond, status, task):
+def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms, task):
     n = poses.shape[0]
     ntasks = (n + task - 1) // task
+    if ntasks == 1:  # no thread wake-up (about 6 us) for one task
+        _run(poses, 0, n, G, model, K, qo, cond, status, T, want_terms)
+        return
     for t in prange(ntasks):
-        _run(poses, t * task, min(n, (t + 1) * task), G, model, K, qo, cond, status)
+        _run(poses, t * task, min(n, (t + 1) * task), G, model, K, qo, cond, status, T, want_terms)
 
 
-def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None) -> KernelResult:
+_NO_TERMS = np.empty((1, 4, 8, 8))  # T of a call without terms (never written)
+
+
+def _task(n: int) -> int:
+    """Poses per task for a batch of n: whole blocks, one task per thread up to :data:`TASK`."""
+    blocks = -(-n // LANES)
+    return min(TASK, LANES * max(1, -(-blocks // numba.get_num_threads())))
+
+
+def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
+                     terms: bool = False) -> KernelResult:
     """K of eq. 30, q, the condition and the verdict at N poses, poses in lanes (the same fields
-    and numbers as :func:`h4pin.stiffness.kernel.compliance_batch` without terms or J).
+    and numbers as :func:`h4pin.stiffness.kernel.compliance_batch`, without J).
 
     Args:
         g: A geometry (see :func:`h4pin.stiffness.kernel.prepare`) or a prepared kernel.
         poses: (N, 4) or (4,) poses [x, y, z, theta] (m, rad).
         model: ``"paper"`` or ``"consistent"``.
         out: Arrays to fill (a :class:`KernelResult`); allocated if None.
+        terms: Also the four terms (N, 4, 8, 8) in ``out.terms`` (control, bending, torsion,
+            tension), K their sum.
 
     The number of threads is numba's (``numba.set_num_threads``).
     """
@@ -557,32 +627,33 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x, dtype=np.float64)
     n = len(x)
-    res = _empty(n, False, False) if out is None else out
+    res = _empty(n, terms, False) if out is None else kernel._check_out(out, n, terms, False)
     if n:
-        _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, TASK)
+        _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status,
+                res.terms if terms else _NO_TERMS, terms, _task(n))
     return res
 
 
 #: Whether :func:`_vbatch` is compiled (:mod:`h4pin._jit`); until then the scalar kernel runs.
 VECTOR = _jit.Gate("vector kernel", _vbatch)
-#: Batches from this many poses without terms take the vector kernel (below it, the scalar
-#: kernel's serial loop: a block of lanes costs more than a few poses one by one).
-VECTOR_FROM = 64
+#: Batches from this many poses take the vector kernel (below it, the scalar kernel's serial
+#: loop: a block of lanes costs more than a few poses one by one; scripts/bench.py, small batches).
+VECTOR_FROM = 8
 
 
 def backend(h4, x: np.ndarray, model: str, terms: bool):
     """The kernel backend of :func:`h4pin.compliance` (``method="kernel"``, and ``"auto"`` on a
     robot with exact parallelograms): the vector kernel for batches of :data:`VECTOR_FROM` poses
-    or more without terms, else the scalar kernel (:func:`h4pin.stiffness.kernel.backend`), which
-    also gives the terms. ``x``: checked (N, 4) finite poses."""
-    if terms or len(x) < VECTOR_FROM or not VECTOR.ready:
+    or more, else the scalar kernel (:func:`h4pin.stiffness.kernel.backend`). ``x``: checked
+    (N, 4) finite poses."""
+    if len(x) < VECTOR_FROM or not VECTOR.ready:
         return kernel.backend(h4, x, model, terms)
     from h4pin.stiffness.eq30 import MODELS, Raw
 
-    res = _empty(len(x), False, False)
+    res = _empty(len(x), terms, False)
     _vbatch(np.ascontiguousarray(x, dtype=np.float64), kernel.for_geometry(h4.geometry).packed, MODELS.index(model),
-            res.K, res.q, res.condition, res.status, TASK)
-    return Raw(res.K, None, res.q, res.condition, res.status)
+            res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS, terms, _task(len(x)))
+    return Raw(res.K, res.terms, res.q, res.condition, res.status)
 
 
 __all__ = ["FASTMATH", "LANES", "TASK", "VECTOR_FROM", "backend", "compliance_batch"]
