@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Poses per second of the scalar batch kernel (kernel._batch) and the lane-vector kernel
-(vector._vbatch) on 1 and 2 threads, timed alternately (best of --repeat), the one-pose times,
+(vector._run, threaded by vector._vbatch) on 1 and 2 threads, timed alternately (best of --repeat), the one-pose times,
 and with --asm the instruction mix of both compiled batch functions.
 
 Default path: model "paper", no terms, inverse geometry and every verdict included; poses around
@@ -78,8 +78,8 @@ def instruction_mix(kern: kernel.Kernel) -> dict[str, collections.Counter]:
     for name, fn, args in (
             ("kernel._batch", kernel._batch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
                                               np.empty((1, 4, 8, 8)), False, np.empty((1, 4, 4)), False, 256)),
-            ("vector._vbatch", vector._vbatch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
-                                                vector._NO_TERMS, False, vector.TASK))):
+            ("vector._run", vector._run, (x, 0, 2, kern.packed, 0, res.K, res.q, res.condition, res.status,
+                                          vector._NO_TERMS, False))):
         opts = {k: v for k, v in fn.targetoptions.items() if k not in ("cache", "nopython")}
         fresh = numba.njit(**opts)(fn.py_func)
         fresh(*args)

@@ -158,3 +158,37 @@ def test_background_warmup_fills_the_cache(tmp_path):
             os.kill(int(lock.read_text()), signal.SIGTERM)
         except (OSError, ValueError):
             pass
+
+
+def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monkeypatch):
+    """numba stamps a cached function with its own file; h4pin's stamp adds every module its
+    compiled code inlines or freezes constants of. In a copy of the package: editing core.py (or
+    the singular threshold's verdicts.py) changes the stamp of the kernels that inline it, and not
+    that of the compiled closure Jacobians (kinematics/_compiled.py), which import nothing of
+    h4pin; and the dispatchers of this process carry the stamp."""
+    import shutil
+
+    from h4pin import _numba_cache
+    from h4pin.stiffness import kernel, vector
+
+    src = Path(_numba_cache.__file__).resolve().parent
+    names = {p.name for p in _numba_cache.sources(src / "stiffness" / "vector.py")}
+    assert {"core.py", "kernel.py", "verdicts.py", "vector.py"} <= names
+    assert kernel._one._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "kernel.py")
+    assert vector._run._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "vector.py")
+
+    copy = tmp_path / "h4pin"
+    shutil.copytree(src, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(_numba_cache, "_ROOT", copy)
+    _numba_cache._imports.cache_clear()
+    files = {"kernel": copy / "stiffness" / "kernel.py", "vector": copy / "stiffness" / "vector.py",
+             "pinocchio": copy / "stiffness" / "pinocchio.py", "closure": copy / "kinematics" / "_compiled.py"}
+    before = {k: _numba_cache.stamp(f) for k, f in files.items()}
+    for edited in ("stiffness/core.py", "verdicts.py"):
+        path = copy / edited
+        path.write_text(path.read_text() + "\n# edited\n")
+        after = {k: _numba_cache.stamp(f) for k, f in files.items()}
+        assert all(after[k] != before[k] for k in ("kernel", "vector", "pinocchio")), edited
+        assert after["closure"] == before["closure"], edited
+        before = after
+    _numba_cache._imports.cache_clear()

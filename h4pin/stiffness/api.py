@@ -66,6 +66,8 @@ class LazyTerms(Mapping):
     A compliance result carries one, so that a user who does not look at the terms does not pay
     for them (time, and 2 KB a pose)."""
 
+    __slots__ = ("_compute", "_args", "_data")  # no __dict__: one object less for the collector a result
+
     def __init__(self, compute: Callable[..., Mapping[str, np.ndarray]], *args: Any):
         self._compute: Callable[..., Mapping[str, np.ndarray]] | None = compute
         self._args = args
@@ -289,7 +291,8 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
         if method == "auto" and g.ideal and kernel.ONE.ready:  # the compiled one-pose kernel
             K, q = np.empty((8, 8)), np.empty(4)
             T = np.empty((4, 8, 8)) if want else kernel.NO_TERMS
-            cond, status = kernel.one_into(x, kernel.for_geometry(g).packed, MODELS.index(model), want, K, q, T)
+            one = kernel._ONE_ENTRY[0] if kernel._ONE_ENTRY else kernel.one_into  # numba's entry, once known
+            cond, status = one(x, kernel.for_geometry(g).packed, MODELS.index(model), want, K, q, T)
             if not want:
                 T = None
         elif math.isfinite(sum(pose.tolist())):
@@ -346,15 +349,17 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
     n = len(xb)
     names = TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
     backend = _backend(h4, method)
-    idx_all = np.arange(n) if finite is None else np.flatnonzero(finite)
-    if len(idx_all) == n and (backend.__module__ in (kernel.__name__, BACKENDS["kernel"]) or n <= _BATCH_CHUNK):
+    idx_all = slice(None) if finite is None else np.flatnonzero(finite)  # the finite poses
+    if ((finite is None or len(idx_all) == n)
+            and (backend.__module__ in (kernel.__name__, BACKENDS["kernel"]) or n <= _BATCH_CHUNK)):
         # Every pose finite, one call: the backend's arrays are the result's (no copy; the kernel
         # is never cut in chunks: its memory is its output's).
         r = backend(h4, np.ascontiguousarray(xb), model, keep)
         matrix, q, cond, status = r.matrix, r.q, r.condition, r.status.astype(np.int8, copy=False)
         out_terms = {name: r.terms[:, t] for t, name in enumerate(TERMS)} if keep else None
-        chunks: list[tuple[np.ndarray, Raw]] = [(idx_all, r)]
+        chunks: list[tuple[Any, Raw]] = [(slice(None), r)]
     else:
+        idx_all = np.arange(n) if finite is None else idx_all
         matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
         cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
         out_terms = {t: np.full((n, 8, 8), np.nan) for t in TERMS} if keep else None
@@ -371,7 +376,7 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
         if keep:
             out_terms.update({t: np.full((n, 8, 8), np.nan) for t in names[len(TERMS):]})
         for idx, r in chunks:
-            for k in idx[r.status == OK]:
+            for k in np.arange(n)[idx][r.status == OK]:
                 extra = element_model.element_terms(h4.geometry, xb[k], active)
                 matrix[k] += sum(extra.values())
                 if keep:

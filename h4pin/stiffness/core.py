@@ -121,7 +121,7 @@ def seg_dist2(A, B, n1, n2):
 
 @njit(cache=True, nogil=True, inline="always")
 def invert_scaled(M, lw, Y):
-    """Y = M1^-1 by Gauss-Jordan with partial pivoting (M is overwritten: garbage after); returns the 1-norm
+    """Y = M1^-1 by Gauss-Jordan with partial pivoting, in place (M is overwritten: garbage after); returns the 1-norm
     condition number of the scaled M1 (rows over l_n, columns 3..7 over the mean bar length),
     ``inf`` for an exactly singular M1 (Y is then garbage)."""
     lmean = 0.0
@@ -138,38 +138,42 @@ def invert_scaled(M, lw, Y):
         if c >= 3:
             s *= ilm
         norm1 = max(norm1, s)
+    # Gauss-Jordan in place on Y (a copy of M1): a column's pivot row becomes, scaled, that row of
+    # the inverse, the pivot column the inverse's column (448 multiply-adds instead of 644 with a
+    # separate identity), and the row swaps come back as column swaps in reverse order at the end.
+    # M keeps the pivot rows.
     for a in range(8):
         for c in range(8):
-            Y[a, c] = 1.0 if a == c else 0.0
+            Y[a, c] = M[a, c]
     for c in range(8):
         p = c
-        big = abs(M[c, c])
+        big = abs(Y[c, c])
         for a in range(c + 1, 8):
-            if abs(M[a, c]) > big:
-                big = abs(M[a, c])
+            v = abs(Y[a, c])
+            if v > big:
+                big = v
                 p = a
         if big == 0.0:
             return np.inf
-        # M's columns before c are zero below the diagonal, and its column c is not read
-        # again: the row operations on M touch its trailing columns only.
+        M[0, c] = p
         if p != c:
-            for e in range(c, 8):
-                M[c, e], M[p, e] = M[p, e], M[c, e]
             for e in range(8):
                 Y[c, e], Y[p, e] = Y[p, e], Y[c, e]
-        inv = 1.0 / M[c, c]
-        for e in range(c + 1, 8):
-            M[c, e] *= inv
+        inv = 1.0 / Y[c, c]
+        Y[c, c] = 1.0
         for e in range(8):
             Y[c, e] *= inv
         for a in range(8):
             if a != c:
-                f = M[a, c]
-                if f != 0.0:
-                    for e in range(c + 1, 8):
-                        M[a, e] -= f * M[c, e]
-                    for e in range(8):
-                        Y[a, e] -= f * Y[c, e]
+                f = Y[a, c]
+                Y[a, c] = 0.0
+                for e in range(8):
+                    Y[a, e] -= f * Y[c, e]
+    for c in range(7, -1, -1):
+        p = int(M[0, c])
+        if p != c:
+            for a in range(8):
+                Y[a, c], Y[a, p] = Y[a, p], Y[a, c]
     ninv = 0.0
     for n in range(8):
         s = 0.0
@@ -202,42 +206,45 @@ def torsion_factors(A, W, P, d):
 def eq30(Y, g, d, lw, c_ctrl, c_bend, c_tors, c_tens, model, K, T, want_terms, Gc, ws):
     """K (8, 8) of eq. 30 (and with ``want_terms`` its four terms T (4, 8, 8), K their sum) from
     Y = M1^-1 and the per-bar g, d, l (module docstring). Gc (8, 4) receives M1^-1 M2 M3 (its
-    rows 0, 1, 2, 5 are J of eq. 8); ws (5, 8) is scratch.
+    rows 0, 1, 2, 5 are J of eq. 8); ws (24, 8) is scratch.
 
     Each term is a symmetric matrix (sum over legs or bars of c v v^T) times, for the actuator
     terms of the ``"paper"`` model, the load mask of its column: entry (a, c) for c >= a is one
-    dot product per term, kept in registers, and gives (c, a) too (half the work of 16 rank-one
-    updates of K in memory, which this replaced: 390 -> 150 ns a pose)."""
+    dot product per term, with the spring compliance folded into its left factor beforehand, and
+    gives (c, a) too (a third of the operations of the 16 rank-one updates of K in memory that this
+    replaced: 390 -> 150 ns a pose)."""
     for i in range(4):
         n0, n1 = 2 * i, 2 * i + 1
+        cs = c_ctrl[i] if want_terms else c_ctrl[i] + c_bend[i]
         for a in range(8):
-            Gc[a, i] = Y[a, n0] * g[n0] + Y[a, n1] * g[n1]
-            ws[i, a] = Y[a, n0] * d[n0] + Y[a, n1] * d[n1]  # torsion: sum_j d_n Y[:, n]
+            gc = Y[a, n0] * g[n0] + Y[a, n1] * g[n1]
+            v = Y[a, n0] * d[n0] + Y[a, n1] * d[n1]  # torsion: sum_j d_n Y[:, n] (e_n l_n = d_n)
+            Gc[a, i] = gc
+            ws[i, a] = v
+            ws[4 + i, a] = c_tors[i] * v
+            ws[8 + i, a] = cs * gc
+            ws[12 + i, a] = c_bend[i] * gc
     for n in range(8):
-        ws[4, n] = c_tens[n] * lw[n] * lw[n]
+        w = c_tens[n] * lw[n] * lw[n]
+        for a in range(8):
+            ws[16 + n, a] = w * Y[a, n]
     for a in range(8):
         la = 1.0 if (model == CONSISTENT or a < 3 or a == 5) else 0.0
         for c in range(a, 8):
             lc = 1.0 if (model == CONSISTENT or c < 3 or c == 5) else 0.0
-            ctrl = 0.0
-            bend = 0.0
-            tors = 0.0
-            for i in range(4):
-                gg = Gc[a, i] * Gc[c, i]
-                ctrl += c_ctrl[i] * gg
-                bend += c_bend[i] * gg
-                tors += c_tors[i] * ws[i, a] * ws[i, c]
-            ten = 0.0
-            for n in range(8):
-                ten += ws[4, n] * Y[a, n] * Y[c, n]
+            ctrl = ws[8, a] * Gc[c, 0] + ws[9, a] * Gc[c, 1] + ws[10, a] * Gc[c, 2] + ws[11, a] * Gc[c, 3]
+            tors = ws[4, a] * ws[0, c] + ws[5, a] * ws[1, c] + ws[6, a] * ws[2, c] + ws[7, a] * ws[3, c]
+            ten = ((ws[16, a] * Y[c, 0] + ws[17, a] * Y[c, 1]) + (ws[18, a] * Y[c, 2] + ws[19, a] * Y[c, 3])
+                   + ((ws[20, a] * Y[c, 4] + ws[21, a] * Y[c, 5]) + (ws[22, a] * Y[c, 6] + ws[23, a] * Y[c, 7])))
             if want_terms:
+                bend = ws[12, a] * Gc[c, 0] + ws[13, a] * Gc[c, 1] + ws[14, a] * Gc[c, 2] + ws[15, a] * Gc[c, 3]
                 T[0, a, c], T[0, c, a] = lc * ctrl, la * ctrl
                 T[1, a, c], T[1, c, a] = lc * bend, la * bend
                 T[2, a, c], T[2, c, a] = tors, tors
                 T[3, a, c], T[3, c, a] = ten, ten
-            act = ctrl + bend
-            K[a, c] = lc * act + tors + ten
-            K[c, a] = la * act + tors + ten
+                ctrl += bend
+            K[a, c] = lc * ctrl + tors + ten
+            K[c, a] = la * ctrl + tors + ten
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -272,18 +279,18 @@ def finish(M, W, lw, A, P, g, c_ctrl, c_bend, c_tors, c_tens, model, status, K, 
 
 @njit(cache=True, nogil=True)
 def scratch():
-    """Scratch arrays of one thread: A, B, W (8, 3), lw (8,), M, Y (8, 8), Gc (8, 4), ws (5, 8),
+    """Scratch arrays of one thread: A, B, W (8, 3), lw (8,), M, Y (8, 8), Gc (8, 4), ws (24, 8),
     g, d (8,) (:func:`scratch_in` of one new buffer)."""
     return scratch_in(np.empty(SCRATCH))
 
 
 #: Size of the buffer :func:`scratch_in` cuts into the scratch arrays (float64).
-SCRATCH = 296
+SCRATCH = 448
 
 
 @njit(cache=True, nogil=True, inline="always")
 def scratch_in(b):
     """The scratch arrays of :func:`scratch` as views of ``b`` (:data:`SCRATCH`,): one allocation."""
     return (b[0:24].reshape(8, 3), b[24:48].reshape(8, 3), b[48:72].reshape(8, 3), b[72:80],
-            b[80:144].reshape(8, 8), b[144:208].reshape(8, 8), b[208:240].reshape(8, 4), b[240:280].reshape(5, 8),
-            b[280:288], b[288:296])
+            b[80:144].reshape(8, 8), b[144:208].reshape(8, 8), b[208:240].reshape(8, 4), b[240:432].reshape(24, 8),
+            b[432:440], b[440:448])

@@ -36,11 +36,13 @@ Same packed geometry as the kernel (:func:`h4pin.stiffness.kernel.prepare`), sam
 
 from __future__ import annotations
 
+import concurrent.futures
+import os
 from typing import Any
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from h4pin import _jit
 from h4pin.kinematics.closed_form import as_poses
@@ -78,9 +80,6 @@ from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, SINGULAR_COND, UN
 #: Poses per block (lanes of the scratch rows): of 16, 32, 64 and 128 lanes, 64 was the fastest
 #: on one core (435, 426, 390, 449 ns a pose); a block's arrays (about 400 KB) stay in L2.
 LANES = 64
-#: Most poses in a parallel task (one scratch allocation per task); a smaller batch is cut into as
-#: many tasks as there are threads (:func:`_task`), so that 512 poses use both cores.
-TASK = 1024
 #: fastmath flags (:data:`h4pin.stiffness.core.FASTMATH`): never ``nnan`` / ``ninf``.
 FASTMATH = core.FASTMATH
 
@@ -587,24 +586,46 @@ def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms):
         _store(p0, nl, S, M, TB, K, qo, cond, status, T, want_terms)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, parallel=True)
-def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms, task):
-    n = poses.shape[0]
-    ntasks = (n + task - 1) // task
-    if ntasks == 1:  # no thread wake-up (about 6 us) for one task
-        _run(poses, 0, n, G, model, K, qo, cond, status, T, want_terms)
-        return
-    for t in prange(ntasks):
-        _run(poses, t * task, min(n, (t + 1) * task), G, model, K, qo, cond, status, T, want_terms)
-
-
 _NO_TERMS = np.empty((1, 4, 8, 8))  # T of a call without terms (never written)
 
+#: Batches from this many poses are cut in one contiguous run of blocks a thread (numba's number
+#: of threads, ``numba.set_num_threads``); smaller ones run in the calling thread (handing a run
+#: to a pool thread costs about 20 us: 45 poses).
+PARALLEL_FROM = 256
 
-def _task(n: int) -> int:
-    """Poses per task for a batch of n: whole blocks, one task per thread up to :data:`TASK`."""
-    blocks = -(-n // LANES)
-    return min(TASK, LANES * max(1, -(-blocks // numba.get_num_threads())))
+_POOL: list[concurrent.futures.ThreadPoolExecutor] = []
+
+
+def _pool() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads that run :func:`_run` beside the calling one (made at first need; a forked
+    child makes its own)."""
+    if not _POOL:
+        _POOL.append(concurrent.futures.ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                                           thread_name_prefix="h4pin-vector"))
+    return _POOL[0]
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_POOL.clear)
+
+
+def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms) -> None:
+    """:func:`_run` over all the poses, on numba's number of threads: one contiguous run of whole
+    blocks a thread, the calling thread taking the first (``_run`` releases the GIL). Python threads
+    and not a ``prange``: a parallel numba function recompiles ``_run`` under its own options, which
+    quadrupled the kernel's compile time (65 s -> 220 s more) for the same speed."""
+    n = len(poses)
+    threads = min(numba.get_num_threads(), -(-n // LANES)) if n >= PARALLEL_FROM else 1
+    if threads <= 1:
+        _run(poses, 0, n, G, model, K, qo, cond, status, T, want_terms)
+        return
+    step = LANES * -(-n // (LANES * threads))
+    bounds = [(lo, min(n, lo + step)) for lo in range(0, n, step)]
+    pool = _pool()
+    futures = [pool.submit(_run, poses, lo, hi, G, model, K, qo, cond, status, T, want_terms) for lo, hi in bounds[1:]]
+    _run(poses, bounds[0][0], bounds[0][1], G, model, K, qo, cond, status, T, want_terms)
+    for f in futures:
+        f.result()
 
 
 def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
@@ -629,13 +650,13 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     n = len(x)
     res = _empty(n, terms, False) if out is None else kernel._check_out(out, n, terms, False)
     if n:
-        _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status,
-                res.terms if terms else _NO_TERMS, terms, _task(n))
+        _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS,
+                terms)
     return res
 
 
-#: Whether :func:`_vbatch` is compiled (:mod:`h4pin._jit`); until then the scalar kernel runs.
-VECTOR = _jit.Gate("vector kernel", _vbatch)
+#: Whether :func:`_run` is compiled (:mod:`h4pin._jit`); until then the scalar kernel runs.
+VECTOR = _jit.Gate("vector kernel", _run)
 #: Batches from this many poses take the vector kernel (below it, the scalar kernel's serial
 #: loop: a block of lanes costs more than a few poses one by one; scripts/bench.py, small batches).
 VECTOR_FROM = 8
@@ -652,8 +673,8 @@ def backend(h4, x: np.ndarray, model: str, terms: bool):
 
     res = _empty(len(x), terms, False)
     _vbatch(np.ascontiguousarray(x, dtype=np.float64), kernel.for_geometry(h4.geometry).packed, MODELS.index(model),
-            res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS, terms, _task(len(x)))
+            res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS, terms)
     return Raw(res.K, res.terms, res.q, res.condition, res.status)
 
 
-__all__ = ["FASTMATH", "LANES", "TASK", "VECTOR_FROM", "backend", "compliance_batch"]
+__all__ = ["FASTMATH", "LANES", "PARALLEL_FROM", "VECTOR_FROM", "backend", "compliance_batch"]
