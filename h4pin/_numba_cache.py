@@ -51,8 +51,8 @@ def _module_file(name: str) -> Path | None:
 
 @functools.cache
 def _imports(path: Path) -> tuple[Path, ...]:
-    """The h4pin modules a source file imports (anywhere in it: ``import h4pin.x``, ``from
-    h4pin.x import y``, ``from h4pin import x``)."""
+    """The h4pin modules a source file imports, anywhere in it: ``import`` of a dotted h4pin
+    module, ``from`` one of its names, or ``from`` a package of its submodules."""
     found = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):

@@ -43,8 +43,9 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     return [("configuration (h4pin.load)", configuration),
             ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
-            ("small-batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (2, 1)))),
-            ("threaded batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (SERIAL_BELOW, 1)))),
+            ("small-batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (2, 1)), vector=False)),
+            ("threaded batch kernel",
+             lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (SERIAL_BELOW, 1)), vector=False)),
             ("vector kernel", lambda: compliance(state["h4"], np.tile(pose(), (VECTOR_FROM, 1)), method="kernel")),
             ("atlas and sweep fields", _study_fields)]
 

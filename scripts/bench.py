@@ -121,7 +121,7 @@ PREVIOUS = {
     "h4pin.compliance(h4, pose, terms=True): one pose with terms": 8.7,
     "h4pin.compliance(h4, poses) for a batch of 1 pose (per call)": 19.0,
     "h4pin.compliance(h4, poses) for a batch of 10 poses (per call)": 34.0,
-    "kernel batch, 'paper', 1 thread, incl. IGM + verdict": 1.47,
+    "scalar kernel batch, 'paper', 1 thread, incl. IGM + verdict": 1.47,
     "vector kernel batch, 'paper', 1 thread, incl. IGM + verdict": 0.943,
     "vector kernel batch, 'consistent', 1 thread, incl. IGM + verdict": 0.947,
     "vector kernel batch, 'paper', 2 threads, incl. IGM + verdict": 0.482,
@@ -203,12 +203,12 @@ def peak_rss_mb() -> float:
 def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tuple[str, int], float], float]:
     """Seconds per pose of the kernel batch per (model, threads), and of one pose."""
     kern = kernel.prepare(h4.geometry)
-    kernel.compliance_batch(kern, poses[:10])  # load (or compile) once
+    kernel.compliance_batch(kern, poses[:10], vector=False)  # load (or compile) once
     times = {}
     for threads in (1, 2):
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         for model in ("paper", "consistent"):
-            run = lambda m=model: kernel.compliance_batch(kern, poses, m)  # noqa: E731
+            run = lambda m=model: kernel.compliance_batch(kern, poses, m, vector=False)  # noqa: E731
             times[model, threads] = best_of(repeat, run) / len(poses)
     for threads in (1, 2):
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
@@ -326,7 +326,7 @@ def main() -> None:
     ]
     for (model, threads), t in t_kernel.items():
         kind, _, name = model.rpartition(" ")
-        label = "vector kernel batch" if kind else "kernel batch"
+        label = "vector kernel batch" if kind else "scalar kernel batch"
         rows.append((f"{label}, '{name}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", t))
     rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t_one))
     peak = peak_flops()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import functools
 import os
 import re
 import time
@@ -23,6 +24,7 @@ from h4pin.kinematics.closed_form import centre_pose
 from h4pin.stiffness import kernel, vector
 
 FMA = ("vfmadd", "vfnmadd", "vfmsub", "vfnmsub")
+scalar = functools.partial(kernel.compliance_batch, vector=False)  # the one-pose-at-a-time kernel
 
 
 def poses_of(h4: h4pin.H4, n: int) -> np.ndarray:
@@ -38,7 +40,7 @@ def rates(kern: kernel.Kernel, x: np.ndarray, repeat: int) -> dict[tuple[str, in
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         best = {"scalar": np.inf, "vector": np.inf}
         for _ in range(repeat):
-            for name, f in (("scalar", kernel.compliance_batch), ("vector", vector.compliance_batch)):
+            for name, f in (("scalar", scalar), ("vector", vector.compliance_batch)):
                 t0 = time.perf_counter()
                 f(kern, x, "paper")
                 best[name] = min(best[name], time.perf_counter() - t0)
@@ -79,7 +81,7 @@ def instruction_mix(kern: kernel.Kernel) -> dict[str, collections.Counter]:
             ("kernel._batch", kernel._batch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
                                               np.empty((1, 4, 8, 8)), False, np.empty((1, 4, 4)), False, 256)),
             ("vector._run", vector._run, (x, 0, 2, kern.packed, 0, res.K, res.q, res.condition, res.status,
-                                          vector._NO_TERMS, False))):
+                                          vector._NO_TERMS, False, vector._NO_JAC, False))):
         opts = {k: v for k, v in fn.targetoptions.items() if k not in ("cache", "nopython")}
         fresh = numba.njit(**opts)(fn.py_func)
         fresh(*args)
@@ -122,7 +124,7 @@ def main() -> None:
     h4 = h4pin.load("prototype")
     kern = kernel.prepare(h4.geometry)
     x = poses_of(h4, args.batch)
-    a, b = kernel.compliance_batch(kern, x), vector.compliance_batch(kern, x)  # load or compile once
+    a, b = scalar(kern, x), vector.compliance_batch(kern, x)  # load or compile once
     if not np.array_equal(a.status, b.status):
         raise SystemExit("the two kernels give different verdicts")
     r = rates(kern, x, args.repeat)

@@ -74,14 +74,15 @@ def min_bar_distance(h4, pose: np.ndarray) -> float:
     return min(bar_axis_distance(a[n], b[n], a[m], b[m]) for n in range(8) for m in range(8) if n // 2 < m // 2)
 
 
+@pytest.mark.parametrize("vector", [False, True], ids=["scalar", "vector"])
 @pytest.mark.parametrize("variant", ["proto", "sym"])
 @pytest.mark.parametrize("model", ["paper", "consistent"])
-def test_kernel_equals_reference(request, variant, model):
-    """K, q of the kernel vs the numpy closed-form batch of eq. 30, <= 1e-12 relative per pose."""
+def test_kernel_equals_reference(request, variant, model, vector):
+    """K, q of both kernels vs the numpy closed-form batch of eq. 30, <= 1e-12 relative per pose."""
     h4 = request.getfixturevalue(variant)
     xs = well_conditioned(h4, sample_poses(h4, 150, seed=7))
     assert len(xs) > 50
-    res = kernel.compliance_batch(h4.geometry, xs, model)
+    res = kernel.compliance_batch(h4.geometry, xs, model, vector=vector)
     ref = compliance(h4, xs, model, method="closed_form")  # the numpy reference, not the kernel
     np.testing.assert_array_equal(res.status, 0)
     assert per_pose_rel(res.K, ref.matrix) <= 1e-12
@@ -89,15 +90,21 @@ def test_kernel_equals_reference(request, variant, model):
     assert res.terms is None and res.J is None
 
 
+@pytest.mark.parametrize("vector", [False, True], ids=["scalar", "vector"])
 @pytest.mark.parametrize("model", ["paper", "consistent"])
-def test_terms_and_jacobian_equal_reference(proto, model):
+def test_terms_and_jacobian_equal_reference(proto, model, vector):
+    """The terms and J of both kernels vs the numpy reference; J NaN where the pose is refused."""
     xs = sample_poses(proto, 60, seed=8)
-    res = kernel.compliance_batch(proto.geometry, xs, model, terms=True, jacobian=True)
+    res = kernel.compliance_batch(proto.geometry, xs, model, terms=True, jacobian=True, vector=vector)
     ref = compliance(proto, xs, model, terms=True, method="closed_form")
     for t, name in enumerate(TERMS):
         assert per_pose_rel(res.terms[:, t], ref.terms[name]) <= 1e-12, name
     assert per_pose_rel(res.K, sum(ref.terms.values())) <= 1e-12
     assert per_pose_rel(res.J, closed_form(proto, xs, ref.q).J) <= 1e-12
+    far = np.vstack([xs[:3], xs[0] + [1.0, 0.0, 0.0, 0.0]])  # the last one unreachable
+    got = kernel.compliance_batch(proto.geometry, far, model, jacobian=True, vector=vector)
+    assert got.status[-1] == verdicts.UNREACHABLE and np.all(np.isnan(got.J[-1]))
+    np.testing.assert_array_equal(got.J[:3], res.J[:3])
 
 
 def test_one_pose_equals_batch(proto):
@@ -238,20 +245,22 @@ def test_typed_errors(proto):
 
 
 def test_compiled_code_is_cached(proto, centre):
-    """A fresh interpreter loads the compiled batch kernels (threaded and serial) from numba's
-    cache (no recompile)."""
+    """A fresh interpreter loads the compiled batch kernels (threaded, serial and vector) from
+    numba's cache (no recompile)."""
     big = np.tile(centre, (kernel.SERIAL_BELOW, 1))
     kernel.compliance_batch(proto.geometry, centre)  # compiles here if no cache yet, and writes it
-    kernel.compliance_batch(proto.geometry, big)
-    code = ("import numpy as np, h4pin; from h4pin.stiffness import kernel; g = h4pin.load().geometry;"
+    kernel.compliance_batch(proto.geometry, big, vector=False)
+    kernel.compliance_batch(proto.geometry, big, vector=True)
+    code = ("import numpy as np, h4pin; from h4pin.stiffness import kernel, vector; g = h4pin.load().geometry;"
             "kernel.compliance_batch(g, np.array([0, 0, -0.6, 0.0]));"
-            "kernel.compliance_batch(g, np.tile([0, 0, -0.6, 0.0], (kernel.SERIAL_BELOW, 1)));"
-            "s = [f.stats for f in (kernel._batch, kernel._batch_serial)];"
+            "big = np.tile([0, 0, -0.6, 0.0], (kernel.SERIAL_BELOW, 1));"
+            "kernel.compliance_batch(g, big, vector=False); kernel.compliance_batch(g, big, vector=True);"
+            "s = [f.stats for f in (kernel._batch, kernel._batch_serial, vector._run)];"
             "print(*[sum(t.cache_hits.values()) for t in s], *[sum(t.cache_misses.values()) for t in s])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
-    hits_threaded, hits_serial, *misses = map(int, out.stdout.split())
-    assert hits_threaded >= 1 and hits_serial >= 1 and misses == [0, 0]
+    *hits, m1, m2, m3 = map(int, out.stdout.split())
+    assert all(h >= 1 for h in hits) and [m1, m2, m3] == [0, 0, 0]
 
 
 def test_pack_broadcasts_over_robots(proto, sym):

@@ -49,7 +49,7 @@ def raw(h4: h4pin.H4, x: np.ndarray, model: str) -> tuple[kernel.KernelResult, k
     a, b = kernel._empty(n, False, False), kernel._empty(n, False, False)
     kernel._batch(x, packed, code, a.K, a.q, a.condition, a.status, np.empty((1, 4, 8, 8)), False,
                   np.empty((1, 4, 4)), False, kernel._BLOCK)
-    vector._vbatch(x, packed, code, b.K, b.q, b.condition, b.status, vector._NO_TERMS, False)
+    vector._vbatch(x, packed, code, b.K, b.q, b.condition, b.status, vector._NO_TERMS, False, vector._NO_JAC, False)
     return a, b
 
 

@@ -19,8 +19,9 @@ Two models of eq. 30 (``docs/errata.md``): ``"paper"`` (as printed, errata 1-3 f
 terms are the same in both.
 
 Backends (``method``), one verdict per pose on all of them (:mod:`h4pin.verdicts`): ``"kernel"``
-(the compiled closed form: :mod:`h4pin.stiffness.vector` for batches, poses in lanes, and the
-scalar :mod:`h4pin.stiffness.kernel` for one pose, small batches and the terms), ``"closed_form"`` (the numpy reference,
+(the compiled closed form, :mod:`h4pin.stiffness.kernel`: one pose at a time for one pose and
+batches under 8 poses, :mod:`h4pin.stiffness.vector`, poses in lanes, for larger batches, terms
+and J included), ``"closed_form"`` (the numpy reference,
 any robot), ``"pinocchio"`` (Pinocchio's Jacobians and the compiled core,
 :mod:`h4pin.stiffness.pinocchio`); ``"auto"`` takes the kernel when it applies (exact
 parallelograms) and is compiled, else the numpy reference (the first calls after an install
@@ -50,7 +51,7 @@ from h4pin.verdicts import INVALID, OK, SINGULAR, SINGULAR_COND, raise_for_statu
 
 #: The backends of :func:`compliance`: method name -> module with a ``backend`` function
 #: (:class:`Raw` from poses). A new backend is one module, one line here and one test parameter.
-BACKENDS = {"kernel": "h4pin.stiffness.vector", "closed_form": "h4pin.stiffness.numpy_backend",
+BACKENDS = {"kernel": "h4pin.stiffness.kernel", "closed_form": "h4pin.stiffness.numpy_backend",
             "pinocchio": "h4pin.stiffness.pinocchio"}
 METHODS = ("auto", *BACKENDS)
 _BATCH_CHUNK = 8192
@@ -351,7 +352,7 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
     backend = _backend(h4, method)
     idx_all = slice(None) if finite is None else np.flatnonzero(finite)  # the finite poses
     if ((finite is None or len(idx_all) == n)
-            and (backend.__module__ in (kernel.__name__, BACKENDS["kernel"]) or n <= _BATCH_CHUNK)):
+            and (backend.__module__ == kernel.__name__ or n <= _BATCH_CHUNK)):
         # Every pose finite, one call: the backend's arrays are the result's (no copy; the kernel
         # is never cut in chunks: its memory is its output's).
         r = backend(h4, np.ascontiguousarray(xb), model, keep)

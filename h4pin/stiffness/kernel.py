@@ -498,7 +498,7 @@ def _check_out(out: KernelResult, n: int, terms: bool, jacobian: bool) -> Kernel
 
 
 def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
-                     terms: bool = False, jacobian: bool = False) -> KernelResult:
+                     terms: bool = False, jacobian: bool = False, vector: bool | None = None) -> KernelResult:
     """K of eq. 30, q, the condition and the verdict at N poses, in parallel over the poses.
 
     Args:
@@ -509,6 +509,10 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
             files); allocated if None.
         terms: Also return the four terms (4 x 512 bytes a pose more).
         jacobian: Also return J = Jx^-1 Jq (eq. 8).
+        vector: Which compiled kernel: ``None`` (default) the vector kernel
+            (:mod:`h4pin.stiffness.vector`, poses in lanes) from :data:`h4pin.stiffness.vector.VECTOR_FROM`
+            poses once it is compiled, else this module's (one pose at a time); ``True`` /
+            ``False`` the one or the other. The same numbers to round-off, the same verdicts.
 
     The number of threads is numba's (``numba.set_num_threads``).
     """
@@ -517,12 +521,18 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
     res = _empty(len(x), terms, jacobian) if out is None else _check_out(out, len(x), terms, jacobian)
-    return _run(kern, x, code, res, terms, jacobian)
+    return _run(kern, x, code, res, terms, jacobian, vector)
 
 
-def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> KernelResult:
+def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
+         vector: bool | None = None) -> KernelResult:
     """:func:`compliance_batch` on checked input: x (N, 4) C-contiguous float64, res of its size."""
+    from h4pin.stiffness import vector as lanes
+
     n = len(x)
+    if n and (vector or (vector is None and n >= lanes.VECTOR_FROM and lanes.VECTOR.ready)):
+        lanes.run(kern, x, code, res, terms, jacobian)
+        return res
     T = res.terms if terms else np.empty((1, 4, 8, 8))
     J = res.J if jacobian else np.empty((1, 4, 4))
     if n:
@@ -548,14 +558,22 @@ def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.n
 
 
 def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str = "paper", *, chunk: int = CHUNK,
-                    terms: bool = False, jacobian: bool = False) -> Iterator[tuple[int, KernelResult]]:
+                    terms: bool = False, jacobian: bool = False,
+                    vector: bool | None = None) -> Iterator[tuple[int, KernelResult]]:
     """Stream the kernel over many poses in chunks: yields ``(start, result)`` per chunk.
 
     ``poses`` is an (N, 4) array (cut into ``chunk`` rows) or an iterable of (n, 4) arrays (each
     one a chunk, e.g. generated on the fly). The result's arrays are reused from one chunk to
     the next: reduce or copy them before asking for the next one. Memory stays at one chunk.
+    ``vector`` as in :func:`compliance_batch`, except that ``None`` chooses once for the whole
+    stream (the vector kernel if it is compiled), so that the numbers do not depend on how the
+    poses are cut.
     """
+    from h4pin.stiffness import vector as lanes
+
     kern = prepare(g)
+    if vector is None:
+        vector = bool(lanes.VECTOR.ready)
     if chunk < 1:
         raise ParameterError(f"chunk must be >= 1, got {chunk!r}")
     if isinstance(poses, np.ndarray):
@@ -571,7 +589,7 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
         if buf is None or len(buf.K) < n:
             buf = _empty(max(n, chunk), terms, jacobian)
         view = KernelResult(*(None if a is None else a[:n] for a in buf))
-        yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian)
+        yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian, vector=vector)
         start += n
 
 

@@ -45,7 +45,6 @@ import numpy as np
 from numba import njit
 
 from h4pin import _jit
-from h4pin.kinematics.closed_form import as_poses
 from h4pin.stiffness import core, kernel
 from h4pin.stiffness.kernel import (
     _BB,
@@ -71,9 +70,6 @@ from h4pin.stiffness.kernel import (
     _WHI,
     _WLO,
     KernelResult,
-    _empty,
-    _model_code,
-    prepare,
 )
 from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, SINGULAR_COND, UNREACHABLE
 
@@ -321,6 +317,21 @@ def _matrix(G, nl, S, M):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _gather(nl, R, X, c, e0, old, piv):
+    """Columns e0..7 of X's row c as it was into rows ``old + e`` of R, and of each lane's pivot
+    row (row R[_PIV] of X, by lane selects over the rows below c) into rows ``piv + e``."""
+    for e in range(e0, 8):
+        for l in range(nl):
+            x = X[c, e, l]
+            v = x
+            p = R[_PIV, l]
+            for a in range(c + 1, 8):
+                v = X[a, e, l] if p == a else v
+            R[old + e, l] = x
+            R[piv + e, l] = v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _column(nl, R, M, Y, c):
     """Step c of the Gauss-Jordan inversion of M into Y (8, 8, lanes each), partial pivoting per
     lane (:func:`core.invert_scaled`): the pivot row is gathered by lane selects into R (scaled
@@ -337,24 +348,8 @@ def _column(nl, R, M, Y, c):
             p = a if better else p
         R[_PIV, l] = p
         R[_ZERO, l] = 1.0 if big == 0.0 else R[_ZERO, l]
-    for e in range(c, 8):
-        for l in range(nl):
-            old = M[c, e, l]
-            v = old
-            p = R[_PIV, l]
-            for a in range(c + 1, 8):
-                v = M[a, e, l] if p == a else v
-            R[_OM + e, l] = old
-            R[_PM + e, l] = v
-    for e in range(8):
-        for l in range(nl):
-            old = Y[c, e, l]
-            v = old
-            p = R[_PIV, l]
-            for a in range(c + 1, 8):
-                v = Y[a, e, l] if p == a else v
-            R[_OY + e, l] = old
-            R[_PY + e, l] = v
+    _gather(nl, R, M, c, c, _OM, _PM)
+    _gather(nl, R, Y, c, 0, _OY, _PY)
     for l in range(nl):
         R[_INV, l] = 1.0 / R[_PM + c, l]
     for e in range(c + 1, 8):
@@ -563,9 +558,10 @@ def _store(p0, nl, S, KB, TB, K, qo, cond, status, T, want_terms):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms):
+def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms, J, want_jac):
     """Poses start .. stop - 1, in blocks of at most LANES lanes of one scratch S (allocated here,
-    so that its shape is a compile-time constant in every lane loop)."""
+    so that its shape is a compile-time constant in every lane loop); with ``want_jac`` J of eq. 8
+    (rows 0, 1, 2, 5 of M1^-1 M2 M3) into J (N, 4, 4), NaN where the verdict is not 0."""
     S = np.empty((_ROWS, LANES))
     M = np.empty((8, 8, LANES))
     Y = np.empty((8, 8, LANES))
@@ -584,6 +580,13 @@ def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms):
         _invert(nl, S, M, Y, R)
         _eq30(G, model, nl, S, Y, F, U, M, TB, want_terms)  # M1 is spent: M takes K
         _store(p0, nl, S, M, TB, K, qo, cond, status, T, want_terms)
+        if want_jac:
+            for l in range(nl):
+                ok = status[p0 + l] == _ST_OK
+                for r in range(4):
+                    a = 5 if r == 3 else r
+                    for i in range(4):
+                        J[p0 + l, r, i] = F[_GC + 4 * a + i, l] if ok else np.nan
 
 
 _NO_TERMS = np.empty((1, 4, 8, 8))  # T of a call without terms (never written)
@@ -609,7 +612,7 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_POOL.clear)
 
 
-def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms) -> None:
+def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms, J, want_jac) -> None:
     """:func:`_run` over all the poses, on numba's number of threads: one contiguous run of whole
     blocks a thread, the calling thread taking the first (``_run`` releases the GIL). Python threads
     and not a ``prange``: a parallel numba function recompiles ``_run`` under its own options, which
@@ -617,64 +620,40 @@ def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms) -> None:
     n = len(poses)
     threads = min(numba.get_num_threads(), -(-n // LANES)) if n >= PARALLEL_FROM else 1
     if threads <= 1:
-        _run(poses, 0, n, G, model, K, qo, cond, status, T, want_terms)
+        _run(poses, 0, n, G, model, K, qo, cond, status, T, want_terms, J, want_jac)
         return
     step = LANES * -(-n // (LANES * threads))
     bounds = [(lo, min(n, lo + step)) for lo in range(0, n, step)]
     pool = _pool()
-    futures = [pool.submit(_run, poses, lo, hi, G, model, K, qo, cond, status, T, want_terms) for lo, hi in bounds[1:]]
-    _run(poses, bounds[0][0], bounds[0][1], G, model, K, qo, cond, status, T, want_terms)
+    futures = [pool.submit(_run, poses, lo, hi, G, model, K, qo, cond, status, T, want_terms, J, want_jac)
+               for lo, hi in bounds[1:]]
+    _run(poses, bounds[0][0], bounds[0][1], G, model, K, qo, cond, status, T, want_terms, J, want_jac)
     for f in futures:
         f.result()
 
 
+_NO_JAC = np.empty((1, 4, 4))  # J of a call without J (never written)
+
+
 def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
-                     terms: bool = False) -> KernelResult:
-    """K of eq. 30, q, the condition and the verdict at N poses, poses in lanes (the same fields
-    and numbers as :func:`h4pin.stiffness.kernel.compliance_batch`, without J).
+                     terms: bool = False, jacobian: bool = False) -> KernelResult:
+    """:func:`h4pin.stiffness.kernel.compliance_batch` on this kernel whatever the batch size
+    (``vector=True``): the same arguments, fields and numbers."""
+    return kernel.compliance_batch(g, poses, model, out, terms=terms, jacobian=jacobian, vector=True)
 
-    Args:
-        g: A geometry (see :func:`h4pin.stiffness.kernel.prepare`) or a prepared kernel.
-        poses: (N, 4) or (4,) poses [x, y, z, theta] (m, rad).
-        model: ``"paper"`` or ``"consistent"``.
-        out: Arrays to fill (a :class:`KernelResult`); allocated if None.
-        terms: Also the four terms (N, 4, 8, 8) in ``out.terms`` (control, bending, torsion,
-            tension), K their sum.
 
-    The number of threads is numba's (``numba.set_num_threads``).
-    """
-    kern = prepare(g)
-    code = _model_code(model)
-    x = as_poses(poses)
-    x = np.ascontiguousarray(x[None] if x.ndim == 1 else x, dtype=np.float64)
-    n = len(x)
-    res = _empty(n, terms, False) if out is None else kernel._check_out(out, n, terms, False)
-    if n:
-        _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS,
-                terms)
-    return res
+def run(kern: Any, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> None:
+    """The batch into ``res`` on checked input (x (N, 4) C-contiguous float64, N >= 1)."""
+    _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS,
+            terms, res.J if jacobian else _NO_JAC, jacobian)
 
 
 #: Whether :func:`_run` is compiled (:mod:`h4pin._jit`); until then the scalar kernel runs.
 VECTOR = _jit.Gate("vector kernel", _run)
-#: Batches from this many poses take the vector kernel (below it, the scalar kernel's serial
-#: loop: a block of lanes costs more than a few poses one by one; scripts/bench.py, small batches).
+#: Batches from this many poses take the vector kernel in :func:`h4pin.stiffness.kernel.compliance_batch`
+#: and :func:`h4pin.compliance` (below it, the scalar kernel's serial loop: a block of lanes costs
+#: more than a few poses one by one; 7.9 against 10.4 us at 8 poses, 7.9 against 6.1 at 4).
 VECTOR_FROM = 8
 
 
-def backend(h4, x: np.ndarray, model: str, terms: bool):
-    """The kernel backend of :func:`h4pin.compliance` (``method="kernel"``, and ``"auto"`` on a
-    robot with exact parallelograms): the vector kernel for batches of :data:`VECTOR_FROM` poses
-    or more, else the scalar kernel (:func:`h4pin.stiffness.kernel.backend`). ``x``: checked
-    (N, 4) finite poses."""
-    if len(x) < VECTOR_FROM or not VECTOR.ready:
-        return kernel.backend(h4, x, model, terms)
-    from h4pin.stiffness.eq30 import MODELS, Raw
-
-    res = _empty(len(x), terms, False)
-    _vbatch(np.ascontiguousarray(x, dtype=np.float64), kernel.for_geometry(h4.geometry).packed, MODELS.index(model),
-            res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS, terms)
-    return Raw(res.K, res.terms, res.q, res.condition, res.status)
-
-
-__all__ = ["FASTMATH", "LANES", "PARALLEL_FROM", "VECTOR_FROM", "backend", "compliance_batch"]
+__all__ = ["FASTMATH", "LANES", "PARALLEL_FROM", "VECTOR_FROM", "compliance_batch"]
