@@ -286,12 +286,14 @@ def _reach_table(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l:
     lb = l.reshape(l.shape[:-1] + (4, 2)).mean(axis=-1)
     z = _HEIGHTS * np.max(r + lb, axis=-1)[..., None]  # (..., heights) below the motors
     centre = P.mean(axis=-1) - DB.mean(axis=-1)
-    e = centre[..., :, None] + DB - P  # (..., 3, 4): B_i - P_i at z = 0
-    batch = np.broadcast_shapes(e.shape[:-2], U.shape[:-2], r.shape[:-1], lb.shape[:-1])
-    e = np.broadcast_to(e[..., None, :, :], batch + (len(_HEIGHTS), 3, 4)).copy()
-    e[..., 2, :] += z[..., None]
-    eu = np.einsum("...hai,...ai->...hi", e, U)
-    rho = np.linalg.norm(e - eu[..., None, :] * U[..., None, :, :], axis=-2)
+    e = centre[..., :, None] + DB - P  # (..., 3, 4): B_i - P_i at z = 0; at height z, e + z e_z
+    # Along the axis u_i and off it, in closed form in z (no (heights, 3, 4) array: a design sweep
+    # checks thousands of designs): e.u + z u_z, and |e + z e_z|^2 - (e.u + z u_z)^2.
+    eu0, uz = np.einsum("...ai,...ai->...i", e, U)[..., None, :], U[..., None, 2, :]
+    ee0, ez = np.einsum("...ai,...ai->...i", e, e)[..., None, :], e[..., None, 2, :]
+    zz = z[..., None]
+    eu = eu0 + zz * uz
+    rho = np.sqrt(np.maximum(ee0 + zz * (2.0 * ez + zz) - eu * eu, 0.0))
     r, lb = r[..., None, :], lb[..., None, :]
     near, far = np.hypot(eu, rho - r), np.hypot(eu, rho + r)
     return (near <= lb) & (lb <= far)
