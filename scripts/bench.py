@@ -405,16 +405,16 @@ def main() -> None:
                                   ("2 Dask workers", {"threads": 1, "workers": 2})):
                 secs, evals = sweep.bench(args.designs, **kwargs)
                 print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
-            print("\nsweep per-design overhead (sweep.evaluate minus the kernel calls alone; target <= 20 % of the "
-                  "kernel's time for the 1000 task poses)")
+            print("\nsweep per-design overhead (sweep.evaluate with the kernel's compiled call left out; "
+                  "target <= 20 % of the kernel's time for the 1000 task poses)")
             rows = {"1 thread": [sweep_overhead()]}
             with sweep._client(2, None) as client:
                 rows["2 Dask workers, each"] = list(client.run(sweep_overhead).values())
             for label, results in rows.items():
-                for ev, k_all, k_task in results:
-                    over = ev - k_all
-                    print(f"  {label:<22} evaluate {ev * 1e3:.3f} ms/design, kernel {k_all * 1e3:.3f} ms (2728 poses), "
-                          f"{k_task * 1e3:.3f} ms (1000 poses): overhead {over * 1e3:.3f} ms = {over / k_task:.0%}")
+                for ev, over, k_task in results:
+                    print(f"  {label:<22} evaluate {ev * 1e3:.3f} ms/design (2728 poses), "
+                          f"overhead {over * 1e3:.3f} ms, kernel {k_task * 1e3:.3f} ms (1000 poses): "
+                          f"{over / k_task:.0%}")
     if args.tolerance:
         bench_tolerance()
 
@@ -492,10 +492,16 @@ def atlas_row(h4: h4pin.H4, repeat: int) -> float:
     return best_of(repeat, lambda: atlas.atlas(h4, xs, xs, zs, progress=False)) / (500 * 500 * 3)
 
 
-def sweep_overhead(n_designs: int = 256, repeat: int = 5) -> tuple[float, float, float]:
-    """Seconds per design, one numba thread, best of ``repeat`` (alternating): the whole
-    :func:`h4pin.studies.sweep.evaluate`, the kernel calls alone over the task and the volume
-    grid (2728 poses), and over the 1000 task poses only."""
+def sweep_overhead(n_designs: int = 256, repeat: int = 7) -> tuple[float, float, float]:
+    """Seconds per design, one numba thread, best of ``repeat``: the whole
+    :func:`h4pin.studies.sweep.evaluate`, its overhead, and the kernel alone over the 1000 task
+    poses (into a buffer, as evaluate calls it).
+
+    The overhead is measured directly, not as a difference of two noisy times of about 1 ms
+    (they vary by 15 % from run to run on a shared VM, more than the overhead): evaluate runs with
+    the kernel's compiled call replaced by one that leaves a stored result in place, so that
+    everything else (packing the designs, the Python wrapper, the compiled reduction over real
+    K and statuses) runs as it does in a sweep."""
     numba.set_num_threads(1)
     from h4pin.studies import sweep
 
@@ -503,22 +509,27 @@ def sweep_overhead(n_designs: int = 256, repeat: int = 5) -> tuple[float, float,
     rows = sweep.designs(spec)
     kerns = [k for k in sweep._kernels(rows) if k is not None]
     poses = np.ascontiguousarray(np.concatenate([spec.task.poses(), spec.volume.poses()]))
-    buf = kernel._empty(len(poses), False, False)
+    task = np.ascontiguousarray(poses[:1000])
     sweep.evaluate(rows[:4], spec, 1)
-    ev, k_all, k_task = [], [], []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        sweep.evaluate(rows, spec, 1)
-        ev.append((time.perf_counter() - t) / len(kerns))
-        t = time.perf_counter()
+    stored = kernel.compliance_batch(kerns[0], poses, spec.model)
+    task_buf = kernel._empty(len(task), False, False)
+    real_empty, real_run = kernel._empty, kernel._run
+
+    def overhead_only() -> None:
+        kernel._empty, kernel._run = (lambda *a: stored), (lambda kern, x, code, res, *a, **k: res)
+        try:
+            sweep.evaluate(rows, spec, 1)
+        finally:
+            kernel._empty, kernel._run = real_empty, real_run
+
+    def kernel_task() -> None:
         for k in kerns:
-            kernel.compliance_batch(k, poses, spec.model, buf)
-        k_all.append((time.perf_counter() - t) / len(kerns))
-        t = time.perf_counter()
-        for k in kerns:
-            kernel.compliance_batch(k, poses[:1000], spec.model)
-        k_task.append((time.perf_counter() - t) / len(kerns))
-    return min(ev), min(k_all), min(k_task)
+            kernel.compliance_batch(k, task, spec.model, task_buf)
+
+    ev = best_of(repeat, lambda: sweep.evaluate(rows, spec, 1)) / len(kerns)
+    over = best_of(repeat, overhead_only) / len(kerns)
+    k_task = best_of(repeat, kernel_task) / len(kerns)
+    return ev, over, k_task
 
 
 def atlas_stream_row(n_side: int = 1000, n_z: int = 10) -> None:

@@ -244,6 +244,35 @@ def test_sym3_eigenvalues_equal_eigvalsh_and_the_exact_ones():
             np.testing.assert_allclose(_sym3(g), exact, rtol=1e-12)
 
 
+def test_design_reduce_prunes_without_changing_the_worst():
+    """The sweep's reduction (:func:`_derived.design_reduce`) skips a pose when an upper bound on
+    its largest eigenvalue is not above the worst so far: the bound holds on every kind of K_tt
+    (nearly scalar ones, where the Wolkowicz-Styan bound is tight, indefinite, non-symmetric),
+    and the worst equals eigvalsh's over all the task poses, the counts those of the status."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    K = np.zeros((n, 8, 8))
+    for p in range(n):
+        q = _rotation(rng, 3)
+        kind = p % 3
+        lam = (rng.uniform(0.5, 2, 3) if kind == 0 else 1.0 + 1e-12 * rng.normal(size=3) if kind == 1
+               else rng.uniform(-1, 1, 3))
+        K[p, :3, :3] = (q * lam) @ q.T * 1e-6 + rng.normal(size=(3, 3)) * 1e-8  # non-symmetric too
+    sym = (K[:, :3, :3] + np.swapaxes(K[:, :3, :3], 1, 2)) / 2
+    lam_max = np.linalg.eigvalsh(sym)[:, 2]
+    bound = np.array([atlas._derived._ktt_bound(K, p) for p in range(n)])
+    assert np.all(bound >= lam_max)
+    status = rng.choice(np.array([0, 0, 0, 1, 3], dtype=np.int8), n)
+    for n_task in (1, 2000, n):
+        ok = status[:n_task] == 0
+        n_ok, worst, n_grid = atlas._derived.design_reduce(K, status, n_task)
+        assert n_ok == ok.sum() and n_grid == (status[n_task:] == 0).sum()
+        if ok.any():
+            assert abs(worst / lam_max[:n_task][ok].max() - 1) < 1e-13
+        else:
+            assert np.isnan(worst)
+
+
 def _exact_cond(a):
     """2-norm condition number of the 4x4 a: the exact eigenvalues of a^T a (Fractions)."""
     f = _exact(a)

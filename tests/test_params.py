@@ -106,7 +106,7 @@ def test_compliances_closed_form():
 def test_batched_checks_agree_with_h4params():
     """ball_joints_apart and bars_reach over a design axis: False exactly where H4Params raises
     the matching error (per-leg half-widths and per-bar lengths)."""
-    from h4pin.description.params import ball_joints_apart, bars_reach
+    from h4pin.description.params import _reach_table, ball_joints_apart, bars_reach
 
     rng = np.random.default_rng(7)
     p = H4Params()
@@ -118,6 +118,8 @@ def test_batched_checks_agree_with_h4params():
     reach = bars_reach(p.P, p.U, p.DB, r, l)
     assert apart.shape == reach.shape == (n,)
     assert 0 < apart.sum() < n and 0 < reach.sum() < n
+    # bars_reach tries every 8th height first: the same verdicts as the whole table of heights
+    assert np.array_equal(reach, np.all(_reach_table(p.P, p.U, p.DB, r, l), axis=-1).any(axis=-1))
     for k in range(n):
         try:
             H4Params(half_width=hw[k], r=r[k], l=l[k])

@@ -278,13 +278,15 @@ def ball_joints_apart(DB: np.ndarray, U: np.ndarray, half_width: np.ndarray, bal
     return ~np.any(ball_joint_gaps(DB, U, half_width) < 2 * ball_radius, axis=-1)
 
 
-def _reach_table(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l: np.ndarray) -> np.ndarray:
+def _reach_table(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l: np.ndarray,
+                 heights: np.ndarray = _HEIGHTS) -> np.ndarray:
     """Whether leg i reaches B_i with the plate level under the actuators' centroid, at each
-    plate height of :data:`_HEIGHTS`: bool (..., heights, 4) (see :func:`bars_reach`)."""
+    plate height of ``heights`` (fractions of the longest leg, :data:`_HEIGHTS`): bool
+    (..., heights, 4) (see :func:`bars_reach`)."""
     P, U, DB = (np.asarray(x, dtype=float) for x in (P, U, DB))
     r, l = np.asarray(r, dtype=float), np.asarray(l, dtype=float)
     lb = l.reshape(l.shape[:-1] + (4, 2)).mean(axis=-1)
-    z = _HEIGHTS * np.max(r + lb, axis=-1)[..., None]  # (..., heights) below the motors
+    z = heights * np.max(r + lb, axis=-1)[..., None]  # (..., heights) below the motors
     centre = P.mean(axis=-1) - DB.mean(axis=-1)
     e = centre[..., :, None] + DB - P  # (..., 3, 4): B_i - P_i at z = 0; at height z, e + z e_z
     # Along the axis u_i and off it, in closed form in z (no (heights, 3, 4) array: a design sweep
@@ -308,7 +310,19 @@ def bars_reach(P: np.ndarray, U: np.ndarray, DB: np.ndarray, r: np.ndarray, l: n
     distance from B_i to the circle of A_i (radius r_i about the axis through P_i) brackets its
     bar length. Some plate height must suit all four legs at once.
     """
-    return np.any(np.all(_reach_table(P, U, DB, r, l), axis=-1), axis=-1)
+    P, U, DB = (np.asarray(x, dtype=float) for x in (P, U, DB))
+    r, l = np.asarray(r, dtype=float), np.asarray(l, dtype=float)
+    lead = np.broadcast_shapes(P.shape[:-2], U.shape[:-2], DB.shape[:-2], r.shape[:-1], l.shape[:-1])
+    P, U, DB = (np.broadcast_to(x, lead + (3, 4)).reshape(-1, 3, 4) for x in (P, U, DB))
+    r, l = np.broadcast_to(r, lead + (4,)).reshape(-1, 4), np.broadcast_to(l, lead + (8,)).reshape(-1, 8)
+    # Every 8th height first (a subset of the heights: a design that reaches at one of them
+    # reaches); the whole table only for the designs that did not (most designs of a sweep reach
+    # at a coarse height: 8x less work for them).
+    ok = np.any(np.all(_reach_table(P, U, DB, r, l, _HEIGHTS[::8]), axis=-1), axis=-1)
+    rest = np.flatnonzero(~ok)
+    if rest.size:
+        ok[rest] = np.any(np.all(_reach_table(P[rest], U[rest], DB[rest], r[rest], l[rest]), axis=-1), axis=-1)
+    return ok.reshape(lead)
 
 
 def symmetric_params(base: H4Params | None = None) -> H4Params:

