@@ -18,6 +18,7 @@ they agree.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import platform
 import resource
@@ -32,8 +33,11 @@ from h4pin.checks import deformed, statics
 from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.description.params import LEG_LATERAL, H4Params
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import kernel, vector
+from h4pin.stiffness import kernel
 from h4pin.stiffness.api import compliance
+
+#: The vector kernel whatever the batch size (kernel.compliance_batch's arguments).
+vector_batch = functools.partial(kernel.compliance_batch, vector=True)
 
 
 def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
@@ -213,16 +217,16 @@ def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tupl
     for threads in (1, 2):
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         for model in ("paper", "consistent"):
-            run = lambda m=model: vector.compliance_batch(kern, poses, m)  # noqa: E731
+            run = lambda m=model: vector_batch(kern, poses, m)  # noqa: E731
             run()
             times["vector " + model, threads] = best_of(repeat, run) / len(poses)
-    out = vector.compliance_batch(kern, poses)
+    out = vector_batch(kern, poses)
     best = {1: np.inf, 2: np.inf}
     for _ in range(repeat):  # into the same arrays (no page faults), 1 and 2 threads alternating
         for threads in (1, 2):
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             t0 = time.perf_counter()
-            vector.compliance_batch(kern, poses, "paper", out)
+            vector_batch(kern, poses, "paper", out)
             best[threads] = min(best[threads], (time.perf_counter() - t0) / len(poses))
     for threads, t in best.items():
         times["vector, into out=, paper", threads] = t

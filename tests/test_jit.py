@@ -162,7 +162,7 @@ def test_background_warmup_fills_the_cache(tmp_path):
 
 def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monkeypatch):
     """numba stamps a cached function with its own file; h4pin's stamp adds every module its
-    compiled code inlines or freezes constants of. In a copy of the package: editing core.py (or
+    compiled code inlines or freezes constants of. In a copy of the package: editing core.py (or packed.py, or
     the singular threshold's verdicts.py) changes the stamp of the kernels that inline it, and not
     that of the compiled closure Jacobians (kinematics/_compiled.py), which import nothing of
     h4pin; and the dispatchers of this process carry the stamp."""
@@ -173,7 +173,7 @@ def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monke
 
     src = Path(_numba_cache.__file__).resolve().parent
     names = {p.name for p in _numba_cache.sources(src / "stiffness" / "vector.py")}
-    assert {"core.py", "kernel.py", "verdicts.py", "vector.py"} <= names
+    assert {"core.py", "packed.py", "verdicts.py", "vector.py"} <= names  # packed.py: the frozen layout
     assert kernel._one._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "kernel.py")
     assert vector._run._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "vector.py")
 
@@ -191,4 +191,9 @@ def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monke
         assert all(after[k] != before[k] for k in ("kernel", "vector", "pinocchio")), edited
         assert after["closure"] == before["closure"], edited
         before = after
+    path = copy / "stiffness" / "packed.py"  # the packed geometry's offsets, frozen into both kernels
+    path.write_text(path.read_text() + "\n# edited\n")
+    after = {k: _numba_cache.stamp(f) for k, f in files.items()}
+    assert after["kernel"] != before["kernel"] and after["vector"] != before["vector"]
+    assert after["closure"] == before["closure"]
     _numba_cache._imports.cache_clear()

@@ -4,6 +4,8 @@ kernel: same verdicts on a 10 000-pose fuzz, same K, q, condition."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,9 @@ import h4pin
 from h4pin import verdicts
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.stiffness import core, kernel, numpy_backend, vector
+
+#: The vector kernel whatever the batch size (kernel.compliance_batch's arguments).
+vector_batch = functools.partial(kernel.compliance_batch, vector=True)
 
 IDEAL = [name for name in h4pin.VARIANTS if h4pin.load(name).geometry.ideal]
 
@@ -62,7 +67,7 @@ def robot(request) -> h4pin.H4:
 def test_fuzz_equals_reference(robot, model):
     x = fuzz(robot)
     ref = numpy_backend.backend(robot, x, model, False)
-    res = vector.compliance_batch(robot.geometry, x, model)
+    res = vector_batch(robot.geometry, x, model)
     np.testing.assert_array_equal(res.status, ref.status)
     counts = np.bincount(res.status, minlength=5)
     assert counts[verdicts.OK] > 1000 and counts[verdicts.UNREACHABLE] > 1000 and counts[verdicts.LIMITS] > 1000
@@ -84,7 +89,7 @@ def test_terms_equal_reference(proto, model):
     VECTOR_FROM poses) gives the same terms."""
     x = fuzz(proto, 3000, seed=11)
     ref = numpy_backend.backend(proto, x, model, True)
-    res = vector.compliance_batch(proto.geometry, x, model, terms=True)
+    res = vector_batch(proto.geometry, x, model, terms=True)
     np.testing.assert_array_equal(res.status, ref.status)
     ok = ref.status == verdicts.OK
     assert ok.sum() > 300
@@ -103,7 +108,7 @@ def test_terms_equal_reference(proto, model):
 
 def test_singular_poses_are_found(sym):
     x = fuzz(sym)
-    res = vector.compliance_batch(sym.geometry, x)
+    res = vector_batch(sym.geometry, x)
     assert np.sum(res.status == verdicts.SINGULAR) > 100
     assert np.all(~(res.condition[res.status == verdicts.SINGULAR] < verdicts.SINGULAR_COND))
 
@@ -137,7 +142,7 @@ def test_every_batch_length(proto, n):
     """Partial blocks (fewer poses than lanes) and partial parallel tasks give the same rows."""
     x = fuzz(proto, n, seed=n)
     a = kernel.compliance_batch(proto.geometry, x)
-    b = vector.compliance_batch(proto.geometry, x)
+    b = vector_batch(proto.geometry, x)
     np.testing.assert_array_equal(b.status, a.status)
     ok = a.status == verdicts.OK
     assert np.all(per_pose_rel(b.K[ok], a.K[ok]) <= bound(a.condition[ok]))
@@ -147,14 +152,14 @@ def test_one_pose_and_threads(proto):
     import numba
 
     x = fuzz(proto, 3000, seed=5)
-    one = vector.compliance_batch(proto.geometry, centre_pose(proto))
+    one = vector_batch(proto.geometry, centre_pose(proto))
     assert one.K.shape == (1, 8, 8) and one.status[0] == verdicts.OK
     before = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        serial = vector.compliance_batch(proto.geometry, x)
+        serial = vector_batch(proto.geometry, x)
         numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-        parallel = vector.compliance_batch(proto.geometry, x)
+        parallel = vector_batch(proto.geometry, x)
     finally:
         numba.set_num_threads(before)
     for s, p in zip(serial, parallel, strict=True):
@@ -164,7 +169,7 @@ def test_one_pose_and_threads(proto):
 
 def test_model_is_checked(proto):
     with pytest.raises(h4pin.ParameterError, match="model"):
-        vector.compliance_batch(proto.geometry, centre_pose(proto), model="exact")
+        vector_batch(proto.geometry, centre_pose(proto), model="exact")
 
 
 def test_atan2_matches_numpy():

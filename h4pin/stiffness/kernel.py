@@ -20,7 +20,7 @@ import math
 import types
 import weakref
 from collections.abc import Iterable, Iterator
-from typing import Any, NamedTuple
+from typing import Any
 
 import numba
 import numpy as np
@@ -31,37 +31,40 @@ from h4pin.description.geometry import H4Geometry, forearms, spring_compliances
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.stiffness import core
+from h4pin.stiffness import vector as lanes
 from h4pin.stiffness.eq30 import MODELS
+from h4pin.stiffness.packed import (
+    _BB,
+    _BM,
+    _C0,
+    _CBEND,
+    _CCTRL,
+    _CLEAR,
+    _CTENS,
+    _CTORS,
+    _LAT,
+    _LL,
+    _M,
+    _P,
+    _QHI,
+    _QLO,
+    _R2,
+    _SIZE,
+    _U,
+    _UM,
+    _UV,
+    _UVU,
+    _V,
+    _WHI,
+    _WLO,
+    KernelResult,
+)
 
 #: Poses per parallel block (scratch arrays are allocated once per block).
 _BLOCK = 256
 #: Default chunk of :func:`iter_compliance` (about 36 MB of output without terms).
 CHUNK = 65_536
 
-# Layout of the packed geometry vector (offsets into one float64 array).
-_P = 0  # (4, 3) P_i
-_U = 12  # (4, 3) u_i
-_V = 24  # (8, 3) A0_ij - P_i
-_UV = 48  # (8, 3) u_i x (A0_ij - P_i)
-_UVU = 72  # (8, 3) (u_i . (A0_ij - P_i)) u_i
-_M = 96  # (4, 3) m_i
-_UM = 108  # (4, 3) u_i x m_i
-_R2 = 120  # (4,) r_i^2
-_LL = 124  # (4,) bar length of leg i (mean of its two bars)
-_C0 = 128  # (2, 3)
-_BB = 134  # (8, 3) B_ij - C_k
-_BM = 158  # (4, 3) B_i - C_k
-_LAT = 170  # (8,) lateral bar of each bar (as float)
-_CCTRL = 178  # (4,)
-_CBEND = 182  # (4,)
-_CTORS = 186  # (4,)
-_CTENS = 190  # (8,)
-_QLO = 198  # (4,)
-_QHI = 202  # (4,)
-_WLO = 206  # (2,)
-_WHI = 208  # (2,)
-_CLEAR = 210
-_SIZE = 211
 
 
 # ----------------------------------------------------------------------------------------------
@@ -461,21 +464,6 @@ BATCH = _jit.Gate("batch kernel", _batch, _batch_serial)
 # Python API
 
 
-class KernelResult(NamedTuple):
-    """Output of the kernel for N poses (SI).
-
-    K (N, 8, 8) of eq. 30 (NaN unless status is 0); q (N, 4) actuator angles, rad (NaN if
-    unreachable); condition (N,) scaled 1-norm condition number of M1; status (N,) int8 (see the
-    module docstring); terms (N, 4, 8, 8) control, bending, torsion, tension (or None);
-    J (N, 4, 4) = Jx^-1 Jq of eq. 8 (or None).
-    """
-
-    K: np.ndarray
-    q: np.ndarray
-    condition: np.ndarray
-    status: np.ndarray
-    terms: np.ndarray | None = None
-    J: np.ndarray | None = None
 
 
 def _empty(n: int, terms: bool, jacobian: bool) -> KernelResult:
@@ -527,8 +515,6 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
 def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
          vector: bool | None = None) -> KernelResult:
     """:func:`compliance_batch` on checked input: x (N, 4) C-contiguous float64, res of its size."""
-    from h4pin.stiffness import vector as lanes
-
     n = len(x)
     if n and (vector or (vector is None and n >= lanes.VECTOR_FROM and lanes.VECTOR.ready)):
         lanes.run(kern, x, code, res, terms, jacobian)
@@ -569,8 +555,6 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
     stream (the vector kernel if it is compiled), so that the numbers do not depend on how the
     poses are cut.
     """
-    from h4pin.stiffness import vector as lanes
-
     kern = prepare(g)
     if vector is None:
         vector = bool(lanes.VECTOR.ready)

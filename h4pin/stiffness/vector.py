@@ -31,7 +31,7 @@ cos and sin of theta stay scalar libm calls, in a lane loop of their own; atan2 
 verdicts are comparisons that must see NaN.
 
 Same packed geometry as the kernel (:func:`h4pin.stiffness.kernel.prepare`), same outputs
-(:class:`h4pin.stiffness.kernel.KernelResult`); robots whose parallelograms are exact.
+(:class:`h4pin.stiffness.packed.KernelResult`); robots whose parallelograms are exact.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ import numpy as np
 from numba import njit
 
 from h4pin import _jit
-from h4pin.stiffness import core, kernel
-from h4pin.stiffness.kernel import (
+from h4pin.stiffness import core
+from h4pin.stiffness.packed import (
     _BB,
     _BM,
     _C0,
@@ -635,13 +635,6 @@ def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms, J, want_jac) ->
 _NO_JAC = np.empty((1, 4, 4))  # J of a call without J (never written)
 
 
-def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
-                     terms: bool = False, jacobian: bool = False) -> KernelResult:
-    """:func:`h4pin.stiffness.kernel.compliance_batch` on this kernel whatever the batch size
-    (``vector=True``): the same arguments, fields and numbers."""
-    return kernel.compliance_batch(g, poses, model, out, terms=terms, jacobian=jacobian, vector=True)
-
-
 def run(kern: Any, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> None:
     """The batch into ``res`` on checked input (x (N, 4) C-contiguous float64, N >= 1)."""
     _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS,
@@ -656,4 +649,4 @@ VECTOR = _jit.Gate("vector kernel", _run)
 VECTOR_FROM = 8
 
 
-__all__ = ["FASTMATH", "LANES", "PARALLEL_FROM", "VECTOR_FROM", "compliance_batch"]
+__all__ = ["FASTMATH", "LANES", "PARALLEL_FROM", "VECTOR_FROM"]
