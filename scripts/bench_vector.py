@@ -21,7 +21,7 @@ import numpy as np
 
 import h4pin
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import kernel, vector
+from h4pin.stiffness import kernel, packed, vector
 
 #: The vector kernel whatever the batch size (kernel.compliance_batch's arguments).
 vector_batch = functools.partial(kernel.compliance_batch, vector=True)
@@ -82,9 +82,9 @@ def instruction_mix(kern: kernel.Kernel) -> dict[str, collections.Counter]:
     out = {}
     for name, fn, args in (
             ("kernel._batch", kernel._batch, (x, kern.packed, 0, res.K, res.q, res.condition, res.status,
-                                              np.empty((1, 4, 8, 8)), False, np.empty((1, 4, 4)), False, 256)),
+                                              packed.NO_TERMS_N, False, packed.NO_J_N, False, 256)),
             ("vector._run", vector._run, (x, 0, 2, kern.packed, 0, res.K, res.q, res.condition, res.status,
-                                          vector._NO_TERMS, False, vector._NO_JAC, False))):
+                                          packed.NO_TERMS_N, False, packed.NO_J_N, False))):
         opts = {k: v for k, v in fn.targetoptions.items() if k not in ("cache", "nopython")}
         fresh = numba.njit(**opts)(fn.py_func)
         fresh(*args)

@@ -12,7 +12,7 @@ import pytest
 import h4pin
 from h4pin import verdicts
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import core, kernel, numpy_backend, vector
+from h4pin.stiffness import core, kernel, numpy_backend, packed, vector
 
 #: The vector kernel whatever the batch size (kernel.compliance_batch's arguments).
 vector_batch = functools.partial(kernel.compliance_batch, vector=True)
@@ -50,11 +50,11 @@ def bound(cond: np.ndarray) -> np.ndarray:
 def raw(h4: h4pin.H4, x: np.ndarray, model: str) -> tuple[kernel.KernelResult, kernel.KernelResult]:
     """The scalar and the vector batch kernel called directly (the public functions refuse
     non-finite poses before the compiled code sees them)."""
-    packed, code, n = kernel.prepare(h4.geometry).packed, kernel._model_code(model), len(x)
+    G, code, n = kernel.prepare(h4.geometry).packed, kernel._model_code(model), len(x)
     a, b = kernel._empty(n, False, False), kernel._empty(n, False, False)
-    kernel._batch(x, packed, code, a.K, a.q, a.condition, a.status, np.empty((1, 4, 8, 8)), False,
-                  np.empty((1, 4, 4)), False, kernel._BLOCK)
-    vector._vbatch(x, packed, code, b.K, b.q, b.condition, b.status, vector._NO_TERMS, False, vector._NO_JAC, False)
+    kernel._batch(x, G, code, a.K, a.q, a.condition, a.status, packed.NO_TERMS_N, False, packed.NO_J_N, False,
+                  kernel._BLOCK)
+    vector._vbatch(x, G, code, b.K, b.q, b.condition, b.status, packed.NO_TERMS_N, False, packed.NO_J_N, False)
     return a, b
 
 

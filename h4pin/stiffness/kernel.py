@@ -57,6 +57,8 @@ from h4pin.stiffness.packed import (
     _V,
     _WHI,
     _WLO,
+    NO_J_N,
+    NO_TERMS_N,
     KernelResult,
 )
 
@@ -64,7 +66,6 @@ from h4pin.stiffness.packed import (
 _BLOCK = 256
 #: Default chunk of :func:`iter_compliance` (about 36 MB of output without terms).
 CHUNK = 65_536
-
 
 
 # ----------------------------------------------------------------------------------------------
@@ -233,9 +234,7 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        K, q = np.empty((8, 8)), np.empty(4)
-        cond, status = _one(x, self.packed, 1 if model == "consistent" else _model_code(model), False, K, q,
-                            NO_TERMS)
+        K, q, cond, status, _ = one(self, x, 1 if model == "consistent" else _model_code(model))
         return K, q, cond, status
 
 
@@ -464,8 +463,6 @@ BATCH = _jit.Gate("batch kernel", _batch, _batch_serial)
 # Python API
 
 
-
-
 def _empty(n: int, terms: bool, jacobian: bool) -> KernelResult:
     return KernelResult(np.empty((n, 8, 8)), np.empty((n, 4)), np.empty(n), np.empty(n, dtype=np.int8),
                         np.empty((n, 4, 8, 8)) if terms else None, np.empty((n, 4, 4)) if jacobian else None)
@@ -519,8 +516,8 @@ def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool,
     if n and (vector or (vector is None and n >= lanes.VECTOR_FROM and lanes.VECTOR.ready)):
         lanes.run(kern, x, code, res, terms, jacobian)
         return res
-    T = res.terms if terms else np.empty((1, 4, 8, 8))
-    J = res.J if jacobian else np.empty((1, 4, 4))
+    T = res.terms if terms else NO_TERMS_N
+    J = res.J if jacobian else NO_J_N
     if n:
         run = _batch if n >= SERIAL_BELOW else _batch_serial
         run(x, kern.packed, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian, _BLOCK)

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """What the two compiled kernels share: the layout of the packed geometry vector (offsets into
-one float64 array, filled by :func:`h4pin.stiffness.kernel.pack`) and their result,
-:class:`KernelResult`.
+one float64 array, filled by :func:`h4pin.stiffness.kernel.pack`), their result,
+:class:`KernelResult`, and the placeholders of the outputs a batch run does not write.
 
 :mod:`h4pin.stiffness.kernel` (one pose at a time, and the front end that chooses) and
 :mod:`h4pin.stiffness.vector` (poses in lanes) both import it; neither imports the other's
@@ -58,4 +58,10 @@ class KernelResult(NamedTuple):
     J: np.ndarray | None = None
 
 
-__all__ = ["KernelResult"]
+#: The T and J arguments of a batch run without terms or without J (never written: the kernels
+#: write them only when asked for them).
+NO_TERMS_N = np.empty((1, 4, 8, 8))
+NO_J_N = np.empty((1, 4, 4))
+
+
+__all__ = ["NO_J_N", "NO_TERMS_N", "KernelResult"]

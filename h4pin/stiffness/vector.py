@@ -69,6 +69,8 @@ from h4pin.stiffness.packed import (
     _V,
     _WHI,
     _WLO,
+    NO_J_N,
+    NO_TERMS_N,
     KernelResult,
 )
 from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, SINGULAR_COND, UNREACHABLE
@@ -589,8 +591,6 @@ def _run(poses, start, stop, G, model, K, qo, cond, status, T, want_terms, J, wa
                         J[p0 + l, r, i] = F[_GC + 4 * a + i, l] if ok else np.nan
 
 
-_NO_TERMS = np.empty((1, 4, 8, 8))  # T of a call without terms (never written)
-
 #: Batches from this many poses are cut in one contiguous run of blocks a thread (numba's number
 #: of threads, ``numba.set_num_threads``); smaller ones run in the calling thread (handing a run
 #: to a pool thread costs about 20 us: 45 poses).
@@ -632,13 +632,10 @@ def _vbatch(poses, G, model, K, qo, cond, status, T, want_terms, J, want_jac) ->
         f.result()
 
 
-_NO_JAC = np.empty((1, 4, 4))  # J of a call without J (never written)
-
-
 def run(kern: Any, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> None:
     """The batch into ``res`` on checked input (x (N, 4) C-contiguous float64, N >= 1)."""
-    _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else _NO_TERMS,
-            terms, res.J if jacobian else _NO_JAC, jacobian)
+    _vbatch(x, kern.packed, code, res.K, res.q, res.condition, res.status, res.terms if terms else NO_TERMS_N,
+            terms, res.J if jacobian else NO_J_N, jacobian)
 
 
 #: Whether :func:`_run` is compiled (:mod:`h4pin._jit`); until then the scalar kernel runs.
