@@ -92,3 +92,20 @@ def no_process_left(monkeypatch):
         except OSError:
             pass
     assert not left, f"processes left running: {left}"
+
+
+def assert_solve_close(actual, desired, cond: float, n: int, scale: float | None = None) -> None:
+    """``actual`` equals ``desired`` within the forward-error bound of an n x n linear solve.
+
+    Two routes through a solve with a matrix of condition number ``cond`` may differ by about
+    ``n eps cond`` relative to the size of the result, and how much of that a run shows depends on
+    the CPU's instruction set (FMA, SIMD width) and the BLAS kernels it picks. A fixed absolute
+    tolerance passes on one CPU and fails on another; this one holds on any IEEE double machine
+    and still fails on an error of a frame, a sign or a missed closure (orders of magnitude more).
+    ``scale``: the size of the compared quantity where ``desired`` does not show it (a residual
+    that should be zero); by default the largest entry of ``desired``."""
+    desired = np.asarray(desired)
+    if scale is None:
+        scale = np.max(np.abs(desired))
+    tol = n * np.finfo(float).eps * cond * scale
+    np.testing.assert_allclose(actual, desired, rtol=0, atol=tol)

@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import sample_poses
+from conftest import assert_solve_close, sample_poses
 
 import h4pin
 from h4pin.description.params import VARIANTS
@@ -124,18 +124,22 @@ def test_closed_loop_jacobian_against_h4_and_finite_differences(tb, variant):
         q = h4.configuration(pose)
         interop.prime(loop, q)
         j = _world(loop, fid, tb.jacobian.computeClosedLoopFrameJacobian(*loop, q, fid))
-        np.testing.assert_allclose(j[[0, 1, 2, 5]], h4.jacobian(pose), rtol=0, atol=1e-12)
+        jmot, jfree = tb.jacobian.separateConstraintJacobian(loop.actuation_data, np.vstack(loop.actuation_data.LJ))
+        # Both routes solve with the 24x24 passive closure Jacobian: their difference is bounded
+        # by its conditioning (1e2 to 3e4 over these poses), not by a fixed number.
+        cond, n = np.linalg.cond(jfree), jfree.shape[0]
+        assert_solve_close(j[[0, 1, 2, 5]], h4.jacobian(pose), cond, n)
         if variant in ("prototype", "symmetric"):  # exact parallelograms: the plate does not tilt
-            np.testing.assert_allclose(j[[3, 4]], 0, atol=1e-12)
+            assert_solve_close(j[[3, 4]], np.zeros((2, 4)), cond, n, scale=np.max(np.abs(j)))
         np.testing.assert_allclose(j, _fd_jacobian(h4, pose), rtol=0, atol=1e-7)
         dq = tb.jacobian.computeDerivative_dq_dqmot(loop.actuation_model, loop.actuation_data,
                                                     loop.actuation_data.LJ)
-        np.testing.assert_allclose(dq, h4.passive_map(q), rtol=0, atol=1e-11)
-        jmot, jfree = tb.jacobian.separateConstraintJacobian(loop.actuation_data, np.vstack(loop.actuation_data.LJ))
-        np.testing.assert_allclose(jmot + jfree @ dq[loop.actuation_model.free_ids_v], 0, atol=1e-11)
+        assert_solve_close(dq, h4.passive_map(q), cond, n)
+        free = jfree @ dq[loop.actuation_model.free_ids_v]
+        assert_solve_close(jmot + free, np.zeros_like(jmot), cond, n, scale=np.max(np.abs(free)))
         interop.prime(side, q)
         j_side = _world(side, fid, tb.jacobian.computeClosedLoopFrameJacobian(*side, q, fid))
-        np.testing.assert_allclose(j_side, j, rtol=0, atol=1e-12)
+        assert_solve_close(j_side, j, cond, n)
 
 
 def test_jacobian_is_wrong_without_prime(tb, proto, centre):
