@@ -129,6 +129,26 @@ def make_readable(path: str | Path) -> Path:
     return Path(path)
 
 
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def same_generated_text(a: str, b: str, rtol: float = 1e-12, atol: float = 1e-12) -> bool:
+    """Whether two generated files (URDF, MJCF, SRDF, YAML) say the same thing: the same text
+    between their numbers, and each pair of numbers within ``rtol`` (relative) or ``atol``.
+
+    A generator that computes its numbers (assembled configurations, inertias turned into
+    principal axes, a camera looking at the robot) writes them to 17 digits, whose last ones
+    follow the CPU's rounding (the BLAS kernels it picks, FMA or not): the same generator gives
+    ``0`` on one machine and ``-1.4e-17`` on another. The defaults are far above that and far
+    below any change of the model (a length or an angle that a design change moves)."""
+    if _NUMBER.sub("#", a) != _NUMBER.sub("#", b):
+        return False
+    for x, y in zip(_NUMBER.findall(a), _NUMBER.findall(b), strict=True):
+        if x != y and not abs(float(x) - float(y)) <= atol + rtol * max(abs(float(x)), abs(float(y))):
+            return False
+    return True
+
+
 def save_figure(fig: Any, path: str | Path, dpi: int = 100) -> Path:
     """Save a matplotlib figure to ``path`` atomically, mode 0644, and close it if pyplot made it."""
     try:

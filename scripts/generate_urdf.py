@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from h4pin.description.urdf import to_urdf, write_text_atomic
+from h4pin.files import same_generated_text
 from h4pin.studies.variants import GENERATORS
 
 URDF_DIR = Path(__file__).resolve().parent.parent / "urdf"
@@ -78,18 +79,18 @@ def mjcf_to_check(files: dict[Path, str]) -> dict[Path, str]:
 
 
 def check_or_write(files: dict[Path, str], check: bool) -> list[Path]:
-    """Write each stale file atomically (unless ``check``); returns the stale ones."""
+    """Write each stale file atomically (unless ``check``); returns the stale ones. A file is
+    current when it says what the generator writes now, numbers to round-off
+    (:func:`h4pin.files.same_generated_text`: their last digits follow the CPU)."""
     stale = []
     for path, text in files.items():
-        if path.is_file() and path.read_text() == text:
+        if path.is_file() and same_generated_text(path.read_text(), text):
             print(f"up to date: {path.relative_to(URDF_DIR.parent)}")
             continue
         stale.append(path)
         if not check:
             path.parent.mkdir(exist_ok=True)
-            tmp = path.with_name(path.name + ".tmp")
-            tmp.write_text(text)
-            tmp.replace(path)
+            write_text_atomic(path, text)
             print(f"wrote {path.relative_to(URDF_DIR.parent)}")
     return stale
 
@@ -98,17 +99,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="report stale files, write nothing")
     args = parser.parse_args()
-    stale = []
-    for name, make in GENERATORS.items():
-        path = URDF_DIR / f"h4_{name}.urdf"
-        text = to_urdf(make(), path.stem)
-        if path.is_file() and path.read_text() == text:
-            print(f"up to date: {path.relative_to(URDF_DIR.parent)}")
-            continue
-        stale.append(path)
-        if not args.check:
-            write_text_atomic(path, text)
-            print(f"wrote {path.relative_to(URDF_DIR.parent)}")
+    urdfs = {URDF_DIR / f"h4_{name}.urdf": to_urdf(make(), f"h4_{name}") for name, make in GENERATORS.items()}
+    stale = check_or_write(urdfs, args.check)
     stale += check_or_write(sidecar_files(), args.check)
     stale += check_or_write(srdf_files(), args.check)
     mjcf = mjcf_files()

@@ -228,7 +228,8 @@ def newton_jacobian(g: H4Geometry, pts: Points, free_q: bool) -> np.ndarray:
 
 
 def newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, *, jac0_inv: np.ndarray | None = None,
-           tol: float = 1e-13, max_iter: int = 30) -> tuple[PlateState, np.ndarray, np.ndarray, np.ndarray]:
+           tol: float = 1e-13, max_iter: int = 30,
+           rcond: float | None = None) -> tuple[PlateState, np.ndarray, np.ndarray, np.ndarray]:
     """Solve the eight closures ``(|B_ij - A_ij|^2 - l_ij^2) / 2 = 0`` by Newton's method.
 
     ``free_q``: unknowns are q, the tilt of the central bar and the lateral angles (inverse
@@ -236,7 +237,11 @@ def newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, *, 
     geometry: q fixed). ``g`` may carry leading robot axes that broadcast with the poses'
     (robots x poses, the tolerance study). With ``jac0_inv`` (the inverse Jacobian at a nearby
     solution, e.g. the nominal robot's), the chord method: that fixed Jacobian for every step
-    (residuals only). Returns the state, a converged flag per pose, theta and the tilt (the
+    (residuals only). With ``rcond``, each step is the least-norm one, the Jacobian's singular
+    values under ``rcond`` times its largest dropped (``np.linalg.pinv``): at an exactly singular
+    assembly the unknowns do not move along the direction the closures cannot resolve, where a
+    plain solve moves them by round-off amplified by the condition number (1e-9 m, and not the
+    same on two CPUs). Returns the state, a converged flag per pose, theta and the tilt (the
     pose's rotation: R = exp(tilt) Rz(theta), tilt normal to z).
     """
     q, D, theta = state.q.copy(), state.D.copy(), pose[..., 3].copy()
@@ -257,6 +262,8 @@ def newton(g: H4Geometry, pose: np.ndarray, state: PlateState, free_q: bool, *, 
             return st, done, theta, tilt
         if jac0_inv is not None:
             step = -(jac0_inv @ res[..., None])[..., 0]
+        elif rcond is not None:
+            step = -(np.linalg.pinv(newton_jacobian(g, pts, free_q), rcond=rcond) @ res[..., None])[..., 0]
         else:
             step = _solve_rows(newton_jacobian(g, pts, free_q), -res)
         step = np.where(done[..., None], 0.0, step)
@@ -462,6 +469,12 @@ def forward_geometry(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = No
     return forward_state(g, qv, guess, tol=tol, max_iter=max_iter)[0]
 
 
+#: Relative singular value of the forward geometry's Newton Jacobian under which a direction is
+#: dropped from the step (:func:`newton`'s ``rcond``): far below any pose the verdicts accept
+#: (condition 1e9), so only exactly singular assemblies are affected.
+_FORWARD_RCOND = 1e-13
+
+
 def forward_state(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None, *, tol: float = 1e-13,
                   max_iter: int = 50) -> tuple[np.ndarray, PlateState]:
     """Pose and full :class:`PlateState` of actuator angles q (4,) (see :func:`forward_geometry`)."""
@@ -475,12 +488,16 @@ def forward_state(g: H4Geometry, q: np.ndarray, guess: np.ndarray | None = None,
     else:
         x = as_pose(guess, "guess").copy()
     start = rigid_state(x, q)
-    state, converged, theta, _ = newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter)
+    # Least-norm steps (rcond): regular assemblies are solved as by a plain solve; at an exactly
+    # singular one (the symmetric variant's centre) the pose stays where the guess put it along
+    # the motion the closures do not fix, instead of drifting by 1e-9 m with the CPU's round-off.
+    state, converged, theta, _ = newton(g, x, start, free_q=False, tol=tol, max_iter=max_iter, rcond=_FORWARD_RCOND)
     if not converged:
         raise ConvergenceError(f"forward geometry did not converge for q = {q} rad: the legs may not assemble")
     # Polish to round-off: at a singular assembly the pose is only as good as the square root of
     # the residual, and a verdict there must not depend on where Newton happened to stop.
-    polished, fine, theta_p, _ = newton(g, np.r_[state.D, theta], state, free_q=False, tol=1e-16, max_iter=8)
+    polished, fine, theta_p, _ = newton(g, np.r_[state.D, theta], state, free_q=False, tol=1e-16, max_iter=8,
+                                        rcond=_FORWARD_RCOND)
     if fine:
         state, theta = polished, theta_p
     pose = np.r_[state.D, theta]
