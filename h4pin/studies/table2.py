@@ -30,7 +30,7 @@ def report(h4: H4, model: str = "paper") -> str:
     ours = np.round(exact, 1) + 0.0  # for display; + 0.0 turns -0.0 into 0.0
     where = ", ".join(f"{round(v * 1e3, 2) + 0.0:.2f}" for v in pose[:3])  # + 0.0: no "-0.00"
     lines = [f"H4 compliance at q_i = 45 deg, pose D = ({where}) mm, "
-             f"theta = {pose[3]:.3f} rad, model '{model}' ({source_label(h4)})", ""]
+             f"theta = {round(pose[3], 3) + 0.0:.3f} rad, model '{model}' ({source_label(h4)})", ""]
     rows = "xyz"
 
     def block(title: str, m: np.ndarray) -> list[str]:
