@@ -6,11 +6,12 @@ in a per-user folder under the temporary directory (a read-only system or contai
 where numba would otherwise refuse to import the package: "cannot cache function ...: no locator
 available"). ``NUMBA_CACHE_DIR``, when set, always wins.
 
-When: numba stamps a cached function with its own source file alone, but h4pin's kernels inline
-functions and freeze constants of other modules (``stiffness/core.py``, ``SINGULAR_COND`` of
-``verdicts.py``): a checkout that changed ``core.py`` but not ``kernel.py`` would run the old
-kernel from the cache, silently. :class:`_Locator` stamps every h4pin function with its file and
-every h4pin module that file imports, following imports through the modules that define compiled
+When: numba stamps a cached function with its own source file alone, but h4pin's compiled
+pipeline freezes constants of other modules (the packed layouts of ``stiffness/packed.py``, the
+element codes of ``description/elements.py``, ``SINGULAR_COND`` of ``verdicts.py``): a checkout
+that changed one of them but not ``pipeline.py`` would run the old code from the cache, silently.
+:class:`_Locator` stamps every h4pin function with its file and every h4pin module that file
+imports, following imports through the modules that define compiled
 functions (:func:`sources`).
 
 :func:`configure` is called once, by ``h4pin/__init__.py``, before any compiled function is

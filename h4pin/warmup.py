@@ -2,8 +2,8 @@
 """Compile h4pin's numba functions into numba's on-disk cache now, instead of at first use.
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
-first need: the Pinocchio configuration (``h4pin.load``), the one-pose kernel, the Pinocchio path,
-the batch kernels (scalar and vector) and the atlas and sweep reductions. After it, every call starts compiled.
+first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline's one-pose and
+batch entries and the atlas and sweep reductions. After it, every call starts compiled.
 h4pin starts this module by itself in the background the first time a call needs code that is
 not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
 ``pip install`` in a Dockerfile.
@@ -23,10 +23,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     """The compile steps (name, call), in order of first need."""
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
-    from h4pin.stiffness import kernel
     from h4pin.stiffness.api import compliance
-    from h4pin.stiffness.kernel import SERIAL_BELOW
-    from h4pin.stiffness.vector import VECTOR_FROM
 
     state: dict[str, object] = {}
 
@@ -37,16 +34,9 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     def pose() -> np.ndarray:
         return cf.centre_pose(state["h4"])
 
-    def geometry() -> object:
-        return kernel.for_geometry(state["h4"].geometry)
-
     return [("configuration (h4pin.load)", configuration),
-            ("one-pose kernel", lambda: compliance(state["h4"], pose(), method="kernel")),
-            ("Pinocchio path", lambda: compliance(state["h4"], pose(), method="pinocchio")),
-            ("small-batch kernel", lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (2, 1)), vector=False)),
-            ("threaded batch kernel",
-             lambda: kernel.compliance_batch(geometry(), np.tile(pose(), (SERIAL_BELOW, 1)), vector=False)),
-            ("vector kernel", lambda: compliance(state["h4"], np.tile(pose(), (VECTOR_FROM, 1)), method="kernel")),
+            ("compiled pipeline, one pose", lambda: compliance(state["h4"], pose(), method="kernel")),
+            ("compiled pipeline, batch", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
             ("atlas and sweep fields", _study_fields)]
 
 

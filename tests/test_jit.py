@@ -21,7 +21,6 @@ from h4pin import _jit
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import pinocchio as pinocchio_backend
 
 ROOT = Path(__file__).resolve().parent.parent
 VARIANTS = h4pin.VARIANTS
@@ -47,36 +46,12 @@ def test_configuration_twin_equals_compiled(variant):
         assert np.max(np.abs(interpreted - compiled)) < 1e-12
 
 
-@pytest.mark.parametrize("variant", ["prototype", "measured_match"])
-def test_pinocchio_path_twin_equals_compiled(variant):
-    """The twin of the Pinocchio path's compiled pose (which calls the shared core) gives the
-    compiled K, terms, condition, verdict and J."""
-    h4 = h4pin.load(variant)
-    twin = _jit.interpreted(pinocchio_backend._pose)
-    import pinocchio as pin
-
-    F, I = pinocchio_backend._pack(h4)  # noqa: E741
-    d = h4.model.createData()
-    for x in _poses(h4, 3):
-        q = kin.configuration(h4, x)
-        pin.computeJointJacobians(h4.model, d, q)
-        homog = np.array([d.oMi[j].homogeneous for j in h4.index.point_joints])
-        for code in (0, 1):
-            a = pinocchio_backend._pose(d.J, homog, F, I, code, True)
-            b = twin(d.J, homog, F, I, code, True)
-            scale = np.max(np.abs(a[0]))
-            assert np.max(np.abs(a[0] - b[0])) <= 1e-12 * scale
-            assert np.max(np.abs(a[1] - b[1])) <= 1e-12 * scale
-            assert abs(a[2] - b[2]) <= 1e-9 * a[2] and a[3] == b[3]
-            assert np.max(np.abs(a[4] - b[4])) <= 1e-12 * np.max(np.abs(a[4]))
-
-
 COLD = r"""
 import json, sys, time
 t0 = time.perf_counter()
 import numpy as np, h4pin
 from h4pin.kinematics import _compiled
-from h4pin.stiffness import kernel, pinocchio as pb
+from h4pin.stiffness import pipeline
 h4 = h4pin.load()
 x = h4pin.kinematics.closed_form.centre_pose(h4)
 xs = x + np.array([[0.02 * k, -0.01 * k, 0.005 * k, 0.05 * k] for k in range(5)])
@@ -84,8 +59,7 @@ one = h4pin.compliance(h4, x)
 batch = h4pin.compliance(h4, xs, "consistent", terms=True)
 pin = h4pin.compliance(h4, x, method="pinocchio")
 bad = h4pin.compliance(h4, np.array([[0, 0, -2.0, 0], x]), on_error="nan")
-compiled = [f.__name__ for f in (_compiled.configuration_packed, kernel._one, kernel._batch, kernel._batch_serial,
-                                 pb._pose) if f.signatures]
+compiled = [f.__name__ for f in (_compiled.configuration_packed, pipeline.one, pipeline.run) if f.signatures]
 print(json.dumps({"seconds": time.perf_counter() - t0, "one": one.matrix.tolist(), "batch": batch.matrix.tolist(),
                   "tension": batch.terms["tension"].tolist(), "pin": pin.matrix.tolist(), "q0": h4.q0.tolist(),
                   "status": bad.status.tolist(), "compiled": compiled}))
@@ -110,8 +84,8 @@ def test_empty_cache_answers_without_compiling(tmp_path, proto, centre):
     assert got["status"] == [1, 0]
 
 
-READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import kernel; from h4pin import _jit; "
-         "print(all(_jit._ready_one(f) for f in (_compiled.configuration_packed, kernel._one)))")
+READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import pipeline; from h4pin import _jit; "
+         "print(all(_jit._ready_one(f) for f in (_compiled.configuration_packed, pipeline.one)))")
 
 
 def test_warmup_compiles_every_gated_function():
@@ -119,10 +93,10 @@ def test_warmup_compiles_every_gated_function():
     the fallback for good): run in this process, every gate is ready afterwards."""
     from h4pin import warmup
     from h4pin.kinematics import pinocchio as kin
-    from h4pin.stiffness import kernel, vector
+    from h4pin.stiffness import kernel
 
     warmup.compile_all()
-    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, pinocchio_backend.POSE, vector.VECTOR]
+    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH]
     for gate in gates:
         assert all(f.signatures for f in gate.functions), gate.name
 
@@ -162,38 +136,33 @@ def test_background_warmup_fills_the_cache(tmp_path):
 
 def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monkeypatch):
     """numba stamps a cached function with its own file; h4pin's stamp adds every module its
-    compiled code inlines or freezes constants of. In a copy of the package: editing core.py (or packed.py, or
-    the singular threshold's verdicts.py) changes the stamp of the kernels that inline it, and not
-    that of the compiled closure Jacobians (kinematics/_compiled.py), which import nothing of
-    h4pin; and the dispatchers of this process carry the stamp."""
+    compiled code inlines or freezes constants of. In a copy of the package: editing the element
+    schema's codes (description/elements.py), the packed layouts (packed.py) or the singular
+    threshold (verdicts.py) changes the stamp of the compiled pipeline, and not that of the
+    compiled configuration (kinematics/_compiled.py), which imports nothing of h4pin; and the
+    dispatchers of this process carry the stamp."""
     import shutil
 
     from h4pin import _numba_cache
-    from h4pin.stiffness import kernel, vector
+    from h4pin.stiffness import pipeline
 
     src = Path(_numba_cache.__file__).resolve().parent
-    names = {p.name for p in _numba_cache.sources(src / "stiffness" / "vector.py")}
-    assert {"core.py", "packed.py", "verdicts.py", "vector.py"} <= names  # packed.py: the frozen layout
-    assert kernel._one._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "kernel.py")
-    assert vector._run._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "vector.py")
+    names = {p.relative_to(src).as_posix() for p in _numba_cache.sources(src / "stiffness" / "pipeline.py")}
+    assert {"stiffness/packed.py", "verdicts.py", "description/elements.py", "stiffness/pipeline.py"} <= names
+    for f in (pipeline.run, pipeline.one):
+        assert f._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "pipeline.py")
 
     copy = tmp_path / "h4pin"
     shutil.copytree(src, copy, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(_numba_cache, "_ROOT", copy)
     _numba_cache._imports.cache_clear()
-    files = {"kernel": copy / "stiffness" / "kernel.py", "vector": copy / "stiffness" / "vector.py",
-             "pinocchio": copy / "stiffness" / "pinocchio.py", "closure": copy / "kinematics" / "_compiled.py"}
+    files = {"pipeline": copy / "stiffness" / "pipeline.py", "closure": copy / "kinematics" / "_compiled.py"}
     before = {k: _numba_cache.stamp(f) for k, f in files.items()}
-    for edited in ("stiffness/core.py", "verdicts.py"):
+    for edited in ("description/elements.py", "stiffness/packed.py", "verdicts.py"):
         path = copy / edited
         path.write_text(path.read_text() + "\n# edited\n")
         after = {k: _numba_cache.stamp(f) for k, f in files.items()}
-        assert all(after[k] != before[k] for k in ("kernel", "vector", "pinocchio")), edited
+        assert after["pipeline"] != before["pipeline"], edited
         assert after["closure"] == before["closure"], edited
         before = after
-    path = copy / "stiffness" / "packed.py"  # the packed geometry's offsets, frozen into both kernels
-    path.write_text(path.read_text() + "\n# edited\n")
-    after = {k: _numba_cache.stamp(f) for k, f in files.items()}
-    assert after["kernel"] != before["kernel"] and after["vector"] != before["vector"]
-    assert after["closure"] == before["closure"]
     _numba_cache._imports.cache_clear()

@@ -26,19 +26,76 @@ import numpy as np
 
 from h4pin.errors import ParameterError
 
-ELEMENTS = ("revolute_radial", "revolute_axial", "revolute_tilt", "ball_radial", "central_EI", "central_GJ",
-            "lateral_EI", "lateral_GJ", "shaft_tilt", "base_translation", "base_rotation")
+#: Sites: the wrench an element carries, from the pulls of the bars that load it: ``joint``, the
+#: lateral bar k's bars about C_k (its revolute joint, and the central-bar segment D-C_k that
+#: carries it); ``arm``, leg i's bars about B_i (lateral bar k's arm C_k-B_i); ``mount``, leg i's
+#: bars about P_i (the actuator's shaft and mount); ``tip``, leg i's bars about A_i (the forearm's
+#: tip); ``bar``, one bar's tension.
+SITES = ("joint", "arm", "mount", "tip", "bar")
+SITE_JOINT, SITE_ARM, SITE_MOUNT, SITE_TIP, SITE_BAR = range(len(SITES))
+#: Forms of an element's compliance C (6 x 6 on the site's wrench [force, couple]) about its
+#: axis e: isotropic, normal to e or along e, on the force or the couple; a straight
+#: Euler-Bernoulli cantilever along e (bending, given as 1/EI; torsion, 1/GJ) of the element's
+#: length, clamped at its root and loaded at the site's point.
+FORMS = ("force", "force_normal", "force_axial", "couple", "couple_normal", "couple_axial", "beam_bending",
+         "beam_torsion")
+(FORM_FORCE, FORM_FORCE_NORMAL, FORM_FORCE_AXIAL, FORM_COUPLE, FORM_COUPLE_NORMAL, FORM_COUPLE_AXIAL,
+ FORM_BEAM_BENDING, FORM_BEAM_TORSION) = range(len(FORMS))
+#: Axes: none (isotropic forms), z (the lateral revolutes of an exact robot), u_i (actuator i),
+#: C_k - D (the central-bar segment), B_i - C_k (lateral bar k's arm), A_i - P_i (forearm i),
+#: w_n (bar n).
+AXES = ("none", "z", "actuator", "central", "arm", "forearm", "bar")
+AXIS_NONE, AXIS_Z, AXIS_ACTUATOR, AXIS_CENTRAL, AXIS_ARM, AXIS_FOREARM, AXIS_BAR = range(len(AXES))
+
+
+@dataclasses.dataclass(frozen=True)
+class Kind:
+    """One kind of compliant element: the schema row from which the URDF reader, the compliance
+    (every path) and the elastic model take it.
+
+    Attributes:
+        name: the :class:`Elements` field.
+        count: elements of the kind (one value each).
+        unit: of the value (SI).
+        site, form, axis: where its load comes from and the shape of its compliance
+            (:data:`SITES`, :data:`FORMS`, :data:`AXES`).
+        rigidity: the value is a rigidity (N.m^2, ``inf`` is rigid, off) rather than a
+            compliance (0 is off).
+        series: identical elements in series per value (a bar's two ball joints: 2).
+    """
+
+    name: str
+    count: int
+    unit: str
+    site: str
+    form: str
+    axis: str = "none"
+    rigidity: bool = False
+    series: float = 1.0
+
+
+#: The element kinds, in the order of their terms.
+KINDS = (
+    Kind("revolute_radial", 2, "m/N", "joint", "force_normal", "z"),
+    Kind("revolute_axial", 2, "m/N", "joint", "force_axial", "z"),
+    Kind("revolute_tilt", 2, "rad/(N.m)", "joint", "couple_normal", "z"),
+    Kind("ball_radial", 8, "m/N", "bar", "force_axial", "bar", series=2.0),
+    Kind("central_EI", 2, "N.m^2", "joint", "beam_bending", "central", rigidity=True),
+    Kind("central_GJ", 2, "N.m^2", "joint", "beam_torsion", "central", rigidity=True),
+    Kind("lateral_EI", 4, "N.m^2", "arm", "beam_bending", "arm", rigidity=True),
+    Kind("lateral_GJ", 4, "N.m^2", "arm", "beam_torsion", "arm", rigidity=True),
+    Kind("shaft_tilt", 4, "rad/(N.m)", "mount", "couple_normal", "actuator"),
+    Kind("base_translation", 4, "m/N", "mount", "force"),
+    Kind("base_rotation", 4, "rad/(N.m)", "mount", "couple"),
+)
+ELEMENTS = tuple(k.name for k in KINDS)
 #: Number of elements of each kind: per lateral revolute joint or central-bar segment D-C_k (2),
 #: per leg (4: lateral arm C_k-B_i, actuator shaft, base mount) or per bar (8).
-COUNTS = {"revolute_radial": 2, "revolute_axial": 2, "revolute_tilt": 2, "ball_radial": 8, "central_EI": 2,
-          "central_GJ": 2, "lateral_EI": 4, "lateral_GJ": 4, "shaft_tilt": 4, "base_translation": 4,
-          "base_rotation": 4}
+COUNTS = {k.name: k.count for k in KINDS}
 #: Kinds given as a stiffness (N.m^2): > 0, ``inf`` (the default) is rigid, i.e. off. The others
 #: are compliances: >= 0, 0 (the default) is off.
-RIGIDITIES = ("central_EI", "central_GJ", "lateral_EI", "lateral_GJ")
-UNITS = {"revolute_radial": "m/N", "revolute_axial": "m/N", "revolute_tilt": "rad/(N.m)", "ball_radial": "m/N",
-         "central_EI": "N.m^2", "central_GJ": "N.m^2", "lateral_EI": "N.m^2", "lateral_GJ": "N.m^2",
-         "shaft_tilt": "rad/(N.m)", "base_translation": "m/N", "base_rotation": "rad/(N.m)"}
+RIGIDITIES = tuple(k.name for k in KINDS if k.rigidity)
+UNITS = {k.name: k.unit for k in KINDS}
 
 
 def element_name(name: str, index: int) -> str:
@@ -151,5 +208,5 @@ ILLUSTRATIVE = Elements(revolute_radial=1e-8, revolute_axial=1e-8, revolute_tilt
                         lateral_GJ=26e9 * 2 * _ROD_I, shaft_tilt=2e-5, base_translation=1e-8, base_rotation=1e-5)
 
 
-__all__ = ["COUNTS", "ELEMENTS", "ILLUSTRATIVE", "RIGIDITIES", "UNITS", "Elements", "check_elements", "element_name",
-           "is_on"]
+__all__ = ["AXES", "COUNTS", "ELEMENTS", "FORMS", "ILLUSTRATIVE", "KINDS", "RIGIDITIES", "SITES", "UNITS", "Elements",
+           "Kind", "check_elements", "element_name", "is_on"]

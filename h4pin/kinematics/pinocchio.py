@@ -105,7 +105,7 @@ def _cross_columns(r: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return np.stack([ry * cz - rz * cy, rz * cx - rx * cz, rx * cy - ry * cx], axis=1)
 
 
-def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None) -> Kinematics:
+def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None, st: PlateState | None = None) -> Kinematics:
     """Everything about one pose through Pinocchio (:class:`Kinematics`): the assembled
     configuration, the points from Pinocchio's joint placements, and the Jacobians of the B_ij
     and A_ij points from Pinocchio's joint Jacobians.
@@ -114,12 +114,13 @@ def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None) -> Kinematics
     D), and ``dA_ij = JA[n] dq``: the joint Jacobians (LOCAL_WORLD_ALIGNED) of the lateral
     bars and forearms shifted to the points (``v_X = v_joint + w x (X - joint)``); the plate
     columns mapped from the free-flyer's local velocity to dtp with the frame Jacobian of D.
+    ``st``: the pose's assembled state when the caller has it (else :func:`state` solves it).
 
     Raises:
         UnreachablePoseError (and subclasses): the robot cannot take the pose.
     """
     x = cf.as_pose(pose).copy()
-    st = state(h4, x)
+    st = state(h4, x) if st is None else st
     q = assemble(h4, st)
     m, d, ix, g = h4.model, h4.data if data is None else data, h4.index, h4.geometry
     pin.computeJointJacobians(m, d, q)

@@ -19,14 +19,14 @@ Two models of eq. 30 (``docs/errata.md``): ``"paper"`` (as printed, errata 1-3 f
 terms are the same in both.
 
 Backends (``method``), one verdict per pose on all of them (:mod:`h4pin.verdicts`): ``"kernel"``
-(the compiled closed form, :mod:`h4pin.stiffness.kernel`: one pose at a time for one pose and
-batches under 8 poses, :mod:`h4pin.stiffness.vector`, poses in lanes, for larger batches, terms
-and J included), ``"closed_form"`` (the numpy reference,
-any robot), ``"pinocchio"`` (Pinocchio's Jacobians and the compiled core,
+(the compiled pipeline, :mod:`h4pin.stiffness.kernel` and :mod:`h4pin.stiffness.pipeline`: one
+pose or a batch, eq. 30 and the elements' terms in one compiled call), ``"closed_form"`` (the
+numpy reference, any robot), ``"pinocchio"`` (Pinocchio's Jacobians and the numpy eq. 30,
 :mod:`h4pin.stiffness.pinocchio`); ``"auto"`` takes the kernel when it applies (exact
 parallelograms) and is compiled, else the numpy reference (the first calls after an install
-do not wait for the compiler: :mod:`h4pin._jit`). Each is a module with a ``backend`` function listed
-in :data:`BACKENDS`.
+do not wait for the compiler: :mod:`h4pin._jit`). The numpy and Pinocchio paths take the
+elements' terms from the statics route of :mod:`h4pin.stiffness.elements`, pose by pose. Each
+is a module with a ``backend(h4, x, model, terms, elements)`` function listed in :data:`BACKENDS`.
 """
 
 from __future__ import annotations
@@ -43,7 +43,6 @@ from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.errors import LoadError, ParameterError
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
-from h4pin.stiffness import elements as element_model
 from h4pin.stiffness import kernel
 from h4pin.stiffness.eq30 import MODELS, TERMS, Raw
 from h4pin.stiffness.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, n_matrix
@@ -257,6 +256,11 @@ def _backend(h4, method: str) -> Callable[..., Raw]:
     return importlib.import_module(BACKENDS[method]).backend
 
 
+def _names(active: Elements | None) -> tuple[str, ...]:
+    """The terms of a result: eq. 30's four, then one per element kind on."""
+    return TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
+
+
 def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements | bool | None = None,
                on_error: str = "raise", method: str = "auto", terms: bool | None = None) -> Compliance:
     """Compliance matrix K of the robot at a pose or a batch of poses: eq. 30 plus its elements.
@@ -289,44 +293,19 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
         x.setflags(write=False)
         want = bool(terms)
         g = h4.geometry
-        if method == "auto" and g.ideal and kernel.ONE.ready:  # the compiled one-pose kernel
-            K, q = np.empty((8, 8)), np.empty(4)
-            T = np.empty((4, 8, 8)) if want else kernel.NO_TERMS
-            one = kernel._ONE_ENTRY[0] if kernel._ONE_ENTRY else kernel.one_into  # numba's entry, once known
-            cond, status = one(x, kernel.for_geometry(g).packed, MODELS.index(model), want, K, q, T)
-            if not want:
-                T = None
+        if g.ideal and (method == "kernel" or (method == "auto" and kernel.ONE.ready)):  # the one-pose entry
+            K, q, cond, status, T = kernel.one(kernel.for_geometry(g, active), x, MODELS.index(model), want)
         elif math.isfinite(sum(pose.tolist())):
-            K, q, cond, status, T = _one_pose(h4, x, model, method, want)
+            r = _backend(h4, method)(h4, x[None], model, want, active)
+            K, q, cond, status = r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0])
+            T = None if r.terms is None else r.terms[0]
         else:
             status = INVALID
-        if status == OK and (T is not None or not want):
-            extra = None if active is None else element_model.element_terms(g, x, active)
-            if extra:
-                K = K + sum(extra.values())
-            if T is None:
-                parts: Mapping[str, np.ndarray] = LazyTerms(_terms_of, h4, x, model, method, active)
-            else:
-                parts = dict(zip(TERMS, T, strict=True))
-                parts.update(extra or {})
+        if status == OK:
+            parts: Mapping[str, np.ndarray] = (LazyTerms(_terms_of, h4, x, model, method, active) if not want
+                                               else dict(zip(_names(active), T, strict=True)))
             return Compliance._one(K, parts, x, q, model, cond, active)
     return _compliance(h4, pose, model, on_error, method, bool(terms), active)
-
-
-def _one_pose(h4, x: np.ndarray, model: str, method: str, terms: bool) -> tuple[Any, Any, float, int, Any]:
-    """K, q, condition, status and the terms (4, 8, 8) (None when not asked for, or when this
-    path does not give them) of one finite pose on ``method``'s backend (other than the compiled
-    one-pose kernel, which :func:`compliance` calls itself), with the compiled one-pose calls
-    where they apply (no batch set-up); status -1 when the closed form refuses the pose before
-    Pinocchio runs (the long way then names the reason)."""
-    code = MODELS.index(model)
-    if method == "pinocchio" and h4.geometry.ideal and kernel.ONE.ready and not terms:
-        from h4pin.stiffness import pinocchio as pinocchio_backend
-
-        got = pinocchio_backend.one(h4, x, code)
-        return (*got, None) if got is not None else (None, None, np.nan, -1, None)
-    r = _backend(h4, method)(h4, x[None], model, terms)
-    return r.matrix[0], r.q[0], float(r.condition[0]), int(r.status[0]), None if r.terms is None else r.terms[0]
 
 
 def _terms_of(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> Mapping[str, np.ndarray]:
@@ -348,41 +327,28 @@ def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: boo
     single = x.ndim == 1
     xb = x[None] if single else x
     n = len(xb)
-    names = TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
+    names = _names(active)
     backend = _backend(h4, method)
     idx_all = slice(None) if finite is None else np.flatnonzero(finite)  # the finite poses
     if ((finite is None or len(idx_all) == n)
             and (backend.__module__ == kernel.__name__ or n <= _BATCH_CHUNK)):
         # Every pose finite, one call: the backend's arrays are the result's (no copy; the kernel
         # is never cut in chunks: its memory is its output's).
-        r = backend(h4, np.ascontiguousarray(xb), model, keep)
+        r = backend(h4, np.ascontiguousarray(xb), model, keep, active)
         matrix, q, cond, status = r.matrix, r.q, r.condition, r.status.astype(np.int8, copy=False)
-        out_terms = {name: r.terms[:, t] for t, name in enumerate(TERMS)} if keep else None
-        chunks: list[tuple[Any, Raw]] = [(slice(None), r)]
+        out_terms = {name: r.terms[:, t] for t, name in enumerate(names)} if keep else None
     else:
         idx_all = np.arange(n) if finite is None else idx_all
         matrix, q = np.full((n, 8, 8), np.nan), np.full((n, 4), np.nan)
         cond, status = np.full(n, np.nan), np.full(n, INVALID, dtype=np.int8)
-        out_terms = {t: np.full((n, 8, 8), np.nan) for t in TERMS} if keep else None
-        chunks = []
+        out_terms = {t: np.full((n, 8, 8), np.nan) for t in names} if keep else None
         for start in range(0, len(idx_all), _BATCH_CHUNK):
             idx = idx_all[start:start + _BATCH_CHUNK]
-            r = backend(h4, np.ascontiguousarray(xb[idx]), model, keep)
+            r = backend(h4, np.ascontiguousarray(xb[idx]), model, keep, active)
             matrix[idx], q[idx], cond[idx], status[idx] = r.matrix, r.q, r.condition, r.status
             if keep:
-                for t, name in enumerate(TERMS):
+                for t, name in enumerate(names):
                     out_terms[name][idx] = r.terms[:, t]
-            chunks.append((idx, r))
-    if active is not None:
-        if keep:
-            out_terms.update({t: np.full((n, 8, 8), np.nan) for t in names[len(TERMS):]})
-        for idx, r in chunks:
-            for k in np.arange(n)[idx][r.status == OK]:
-                extra = element_model.element_terms(h4.geometry, xb[k], active)
-                matrix[k] += sum(extra.values())
-                if keep:
-                    for name, term in extra.items():
-                        out_terms[name][k] = term
     if on_error == "raise" and np.any(status != OK):
         k = int(np.argmax(status != OK))
         raise_for_status(status, [None] * k + [_detail(h4, xb[k], int(status[k]), cond[k], k)], batch=not single)

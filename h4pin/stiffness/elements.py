@@ -193,5 +193,24 @@ def element_terms(g: H4Geometry, pose: np.ndarray, elements: Elements) -> dict[s
     return out
 
 
-__all__ = ["BEAMS", "beam_axes", "beam_compliance", "element_loads", "element_terms", "plate_loads",
+def add_terms(g: H4Geometry, x: np.ndarray, raw, elements: Elements | None):
+    """A backend's result (:class:`h4pin.stiffness.eq30.Raw` at poses x (N, 4)) with the terms of
+    ``elements`` by this module's statics route, pose by pose (the reference of the compiled
+    pipeline's element terms, and the route of robots it does not take): added to the matrices of
+    the poses whose status is 0, and after eq. 30's four terms when the result has terms."""
+    if elements is None or elements.off:
+        return raw
+    names = [n for n in ELEMENTS if elements.on(n)]
+    extra = None if raw.terms is None else np.full((len(x), len(names), 8, 8), np.nan)
+    for k in np.flatnonzero(raw.status == 0):
+        terms = element_terms(g, x[k], elements)
+        raw.matrix[k] += sum(terms[n] for n in names)
+        if extra is not None:
+            extra[k] = [terms[n] for n in names]
+    if extra is None:
+        return raw
+    return raw._replace(terms=np.concatenate([raw.terms, extra], axis=1))
+
+
+__all__ = ["BEAMS", "add_terms", "beam_axes", "beam_compliance", "element_loads", "element_terms", "plate_loads",
            "spring_compliances"]

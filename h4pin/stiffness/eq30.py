@@ -13,9 +13,9 @@ actuator, forearm and bar; the print has one scalar each).
   then symmetric and equals the Newton-Euler statics route (:mod:`h4pin.checks.statics`).
 
 Every array may carry leading batch axes (poses, or robots x poses): the same function serves a
-batch of poses of one robot and the tolerance study's robots x poses. The compiled core
-(:mod:`h4pin.stiffness.core`) computes the same sums per pose; tests keep every backend equal to
-this reference.
+batch of poses of one robot and the tolerance study's robots x poses. The compiled pipeline
+(:mod:`h4pin.stiffness.pipeline`) computes the same sums per pose; tests keep every backend equal
+to this reference.
 """
 
 from __future__ import annotations

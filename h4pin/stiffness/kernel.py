@@ -1,22 +1,27 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The default compiled path: eq. 30 of Company, Pierrot and Fauroux (ICRA 2005) per pose, in numba.
+"""The default compiled path: the Python front end of the compiled pipeline
+(:mod:`h4pin.stiffness.pipeline`), eq. 30 of Company, Pierrot and Fauroux (ICRA 2005) and the
+robot's compliant elements per pose.
 
-One compiled call does a whole pose: the inverse geometry (closed form, elbow out), the verdict
-(:mod:`h4pin.verdicts`), M1 (eq. 6) and the products of M2, M3, M4, M5 from the points, then the
-shared compiled core of eq. 30 (:mod:`h4pin.stiffness.core`). Robots whose parallelograms are
-exact (:attr:`H4Geometry.ideal <h4pin.H4Geometry>`); the numpy reference (:mod:`h4pin.stiffness.eq30`) covers
-every robot and a parametrised test keeps them equal.
+One call of the pipeline does a whole pose: the inverse geometry (closed form, elbow out), the
+verdict (:mod:`h4pin.verdicts`), M1 (eq. 6) and its inverse, eq. 30 and the element terms. One
+pose and a batch run the same compiled function (one pose is a block of one lane); batches from
+:data:`PARALLEL_FROM` poses are cut into one run a thread. Robots whose parallelograms are exact
+(:attr:`H4Geometry.ideal <h4pin.H4Geometry>`); the numpy reference (:mod:`h4pin.stiffness.eq30`)
+covers every robot and a parametrised test keeps them equal.
 
 The robot comes as an :class:`h4pin.H4Geometry` (``h4.geometry``) or any object with the
-attributes listed in :func:`prepare`, packed once into one float vector.
+attributes listed in :func:`prepare`, packed once into one float vector; its elements
+(:class:`h4pin.Elements`) into a table (:func:`pack_elements`, :meth:`Kernel.with_elements`).
 
 K is NaN unless the status is 0 (:data:`h4pin.verdicts.OK`).
 """
 
 from __future__ import annotations
 
+import concurrent.futures
 import functools
-import math
+import os
 import types
 import weakref
 from collections.abc import Iterable, Iterator
@@ -24,14 +29,13 @@ from typing import Any
 
 import numba
 import numpy as np
-from numba import njit, prange
 
 from h4pin import _jit
+from h4pin.description.elements import AXES, FORMS, KINDS, SITES, Elements
 from h4pin.description.geometry import H4Geometry, forearms, spring_compliances
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
-from h4pin.stiffness import core
-from h4pin.stiffness import vector as lanes
+from h4pin.stiffness import pipeline
 from h4pin.stiffness.eq30 import MODELS
 from h4pin.stiffness.packed import (
     _BB,
@@ -57,15 +61,20 @@ from h4pin.stiffness.packed import (
     _V,
     _WHI,
     _WLO,
+    EL_HEADER,
+    EL_ROW,
+    NO_ELEMENTS,
     NO_J_N,
     NO_TERMS_N,
     KernelResult,
 )
 
-#: Poses per parallel block (scratch arrays are allocated once per block).
-_BLOCK = 256
 #: Default chunk of :func:`iter_compliance` (about 36 MB of output without terms).
 CHUNK = 65_536
+#: Batches from this many poses are cut in one contiguous run of blocks a thread (numba's number
+#: of threads, ``numba.set_num_threads``); smaller ones run in the calling thread (handing a run
+#: to a pool thread costs about 20 us: 45 poses).
+PARALLEL_FROM = 256
 
 
 # ----------------------------------------------------------------------------------------------
@@ -198,12 +207,48 @@ def pack_fields(fields: dict[str, Any]) -> np.ndarray:
     return G
 
 
+def _lengths(packed: np.ndarray) -> dict[str, np.ndarray]:
+    """Lengths of the beams a geometry holds (m): the central-bar segments |C_k - D| (2,), the
+    lateral arms |B_i - C_k| (4,) and the forearms |A_i - P_i| (4,)."""
+    return {"central": np.linalg.norm(packed[_C0:_C0 + 6].reshape(2, 3), axis=1),
+            "arm": np.linalg.norm(packed[_BM:_BM + 12].reshape(4, 3), axis=1),
+            "forearm": np.linalg.norm(packed[_M:_M + 12].reshape(4, 3), axis=1)}
+
+
+def pack_elements(elements: Elements | None, packed: np.ndarray) -> np.ndarray:
+    """The element table of the compiled pipeline (:data:`h4pin.stiffness.packed.EL_ROW`) for the
+    kinds of ``elements`` that are on (in :data:`h4pin.description.elements.KINDS` order), with the
+    beam lengths of the packed geometry ``packed``. Read-only; :data:`NO_ELEMENTS` when none is on."""
+    on = [] if elements is None else [k for k in KINDS if elements.on(k.name)]
+    if not on:
+        return NO_ELEMENTS
+    lengths = _lengths(packed)
+    rows, values = [], []
+    offset = EL_HEADER + EL_ROW * len(on)
+    for kind in on:
+        raw = np.asarray(getattr(elements, kind.name), dtype=float)
+        if kind.rigidity:
+            with np.errstate(divide="ignore"):
+                c = np.where(np.isinf(raw), 0.0, 1.0 / raw)
+        else:
+            c = raw
+        length = lengths.get(kind.axis, np.zeros(kind.count))
+        rows.append([SITES.index(kind.site), FORMS.index(kind.form), AXES.index(kind.axis), kind.count, offset])
+        values.append(np.stack([kind.series * c, np.broadcast_to(length, (kind.count,))], axis=1).ravel())
+        offset += 2 * kind.count
+    table = np.concatenate([[float(len(on))], np.ravel(rows), *values]).astype(np.float64)
+    table.setflags(write=False)
+    return table
+
+
 class Kernel:
-    """A geometry packed for the compiled kernel (see :func:`prepare`). Calling it on one pose is
-    the fast single-pose path: ``K, q, condition, status = kernel(pose)``."""
+    """A geometry packed for the compiled pipeline (see :func:`prepare`), with the element table
+    of the elements it includes (none by default: :meth:`with_elements`). Calling it on one pose
+    is the fast single-pose path: ``K, q, condition, status = kernel(pose)``."""
 
     geometry: Any
     packed: np.ndarray
+    elements: np.ndarray
 
     def __init__(self, g: Any):
         self.geometry = g
@@ -214,18 +259,32 @@ class Kernel:
         _check_packed(G)
         G.setflags(write=False)
         self.packed = G
+        self.elements = NO_ELEMENTS
 
     @classmethod
-    def from_packed(cls, G: np.ndarray) -> Kernel:
+    def from_packed(cls, G: np.ndarray, elements: np.ndarray = NO_ELEMENTS) -> Kernel:
         """The kernel of a vector packed by :func:`pack_fields` (a read-only copy; ``geometry``
-        is None)."""
+        is None) and an element table (:func:`pack_elements`)."""
         packed = np.array(G, dtype=np.float64)
         if packed.shape != (_SIZE,):
             raise ParameterError(f"a packed kernel vector has shape ({_SIZE},), got {packed.shape}")
         packed.setflags(write=False)
         kern = cls.__new__(cls)
-        kern.geometry, kern.packed = None, packed
+        kern.geometry, kern.packed, kern.elements = None, packed, elements
         return kern
+
+    def with_elements(self, elements: Elements | None) -> Kernel:
+        """The same geometry with the terms of ``elements`` (None or all off: eq. 30 alone)."""
+        if elements is not None and not isinstance(elements, Elements):
+            raise ParameterError(f"elements must be an h4pin.Elements or None, got {type(elements).__name__}")
+        kern = Kernel.__new__(Kernel)
+        kern.geometry, kern.packed, kern.elements = self.geometry, self.packed, pack_elements(elements, self.packed)
+        return kern
+
+    @property
+    def kinds(self) -> int:
+        """Number of element kinds on (the terms after eq. 30's four)."""
+        return int(self.elements[0])
 
     def __call__(self, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
         """K (8, 8), q (4,), condition, status at one pose [x, y, z, theta] (m, rad)."""
@@ -234,7 +293,7 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        K, q, cond, status, _ = one(self, x, 1 if model == "consistent" else _model_code(model))
+        K, q, cond, status, _ = one(self, x, _model_code(model))
         return K, q, cond, status
 
 
@@ -273,231 +332,143 @@ def _model_code(model: str) -> int:
 
 
 # ----------------------------------------------------------------------------------------------
-# The compiled pose: closed-form front end of the shared core (h4pin.stiffness.core)
+# Running the pipeline
+
+#: Whether the pipeline's entries are compiled (:mod:`h4pin._jit`): until then
+#: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call. One
+#: pose (:func:`h4pin.stiffness.pipeline.one`) is compiled first.
+ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one)
+BATCH = _jit.Gate("compiled pipeline, batch", pipeline.run)
+
+_POOL: list[concurrent.futures.ThreadPoolExecutor] = []
+_ENTRIES: dict[str, Any] = {}
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _inverse_geometry(px, py, pz, th, G, qo, A, B):
-    """Closed-form inverse geometry on the leg midpoints (alpha cos q + beta sin q = rhs, elbow
-    out): fills qo (4,), A, B (8, 3); returns False if a leg cannot reach."""
-    ct, st = np.cos(th), np.sin(th)
-    for i in range(4):
-        k = int(G[_LAT + 2 * i])
-        cx = px + ct * G[_C0 + 3 * k] - st * G[_C0 + 3 * k + 1]
-        cy = py + st * G[_C0 + 3 * k] + ct * G[_C0 + 3 * k + 1]
-        cz = pz + G[_C0 + 3 * k + 2]
-        ex = cx + G[_BM + 3 * i] - G[_P + 3 * i]
-        ey = cy + G[_BM + 3 * i + 1] - G[_P + 3 * i + 1]
-        ez = cz + G[_BM + 3 * i + 2] - G[_P + 3 * i + 2]
-        alpha = ex * G[_M + 3 * i] + ey * G[_M + 3 * i + 1] + ez * G[_M + 3 * i + 2]
-        beta = ex * G[_UM + 3 * i] + ey * G[_UM + 3 * i + 1] + ez * G[_UM + 3 * i + 2]
-        rhs = 0.5 * (ex * ex + ey * ey + ez * ez + G[_R2 + i] - G[_LL + i] * G[_LL + i])
-        rho = np.sqrt(alpha * alpha + beta * beta)
-        if not (rho > 0.0) or abs(rhs) > rho:
-            for a in range(4):
-                qo[a] = np.nan
-            return False
-        cd = rhs / rho
-        sd = np.sqrt(max(1.0 - cd * cd, 0.0))
-        cphi, sphi = alpha / rho, beta / rho
-        cq = cphi * cd + sphi * sd  # q = phi - delta
-        sq = sphi * cd - cphi * sd
-        qo[i] = core.atan2(sq, cq)  # libm's atan2 costs 2-3x more
-        for j in range(2):
-            n = 2 * i + j
-            for a in range(3):
-                A[n, a] = (G[_P + 3 * i + a] + cq * G[_V + 3 * n + a] + sq * G[_UV + 3 * n + a]
-                           + (1.0 - cq) * G[_UVU + 3 * n + a])
-            B[n, 0] = cx + G[_BB + 3 * n]
-            B[n, 1] = cy + G[_BB + 3 * n + 1]
-            B[n, 2] = cz + G[_BB + 3 * n + 2]
-    return True
+def _pool() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads that run the pipeline beside the calling one (made at first need; a forked
+    child makes its own)."""
+    if not _POOL:
+        _POOL.append(concurrent.futures.ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                                           thread_name_prefix="h4pin-pipeline"))
+    return _POOL[0]
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _limits_and_bars(th, G, qo, A, B):
-    """Verdict of an assembled pose before M1: 2 (joint limits), 3 (interfering bars) or 0."""
-    for i in range(4):
-        if not (G[_QLO + i] <= qo[i] <= G[_QHI + i]):
-            return 2
-    for k in range(2):
-        if not (G[_WLO + k] <= -th <= G[_WHI + k]):
-            return 2
-    c2 = G[_CLEAR] * G[_CLEAR]
-    for n1 in range(6):
-        for n2 in range(2 * (n1 // 2) + 2, 8):
-            if not core.lines_apart(A, B, n1, n2, c2) and core.seg_dist2(A, B, n1, n2) < c2:
-                return 3
-    return 0
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_POOL.clear)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _m1(px, py, pz, th, G, A, B, W, lw, M, g):
-    """M1 of eq. 6 (row n = [w, w x (D - B_n), (w x (C_k - B_n)).z in column 6 + k]), the bar
-    vectors W, lengths lw and g_n = w_n . (p_n x u_i) (row n of M2 M3)."""
-    ct, st = np.cos(th), np.sin(th)
-    for n in range(8):
-        k = int(G[_LAT + n])
-        i = n // 2
-        wx, wy, wz = B[n, 0] - A[n, 0], B[n, 1] - A[n, 1], B[n, 2] - A[n, 2]
-        W[n, 0], W[n, 1], W[n, 2] = wx, wy, wz
-        lw[n] = np.sqrt(wx * wx + wy * wy + wz * wz)
-        sx, sy, sz = px - B[n, 0], py - B[n, 1], pz - B[n, 2]
-        M[n, 0], M[n, 1], M[n, 2] = wx, wy, wz
-        M[n, 3] = wy * sz - wz * sy
-        M[n, 4] = wz * sx - wx * sz
-        M[n, 5] = wx * sy - wy * sx
-        M[n, 6] = 0.0
-        M[n, 7] = 0.0
-        tx = px + ct * G[_C0 + 3 * k] - st * G[_C0 + 3 * k + 1] - B[n, 0]
-        ty = py + st * G[_C0 + 3 * k] + ct * G[_C0 + 3 * k + 1] - B[n, 1]
-        M[n, 6 + k] = wx * ty - wy * tx
-        ux, uy, uz = G[_U + 3 * i], G[_U + 3 * i + 1], G[_U + 3 * i + 2]
-        qx, qy, qz = G[_P + 3 * i] - A[n, 0], G[_P + 3 * i + 1] - A[n, 1], G[_P + 3 * i + 2] - A[n, 2]
-        g[n] = wx * (qy * uz - qz * uy) + wy * (qz * ux - qx * uz) + wz * (qx * uy - qy * ux)
+def _call(name: str, *args: Any) -> None:
+    """``h4pin.stiffness.pipeline.<name>`` (``run`` or ``one``) through the compiled entry point
+    of its one overload (every caller passes the same types: read-only poses and tables, fresh or
+    checked outputs), which skips the dispatcher's typing of a dozen arguments (about 1 us a
+    call); the first call goes through the dispatcher and looks the overload up by the types it
+    was given."""
+    entry = _ENTRIES.get(name)
+    if entry is not None:
+        entry(*args)
+        return
+    f = getattr(pipeline, name)
+    f(*args)
+    overload = getattr(f, "overloads", {}).get(tuple(numba.typeof(a) for a in args))
+    if overload is not None and getattr(overload, "entry_point", None) is not None:
+        _ENTRIES[name] = overload.entry_point
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _pose(px, py, pz, th, G, P, C, model, K, qo, T, want_terms, Jo, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d):
-    """One pose: fills K (8, 8), qo (4,), optionally T (4, 8, 8) and Jo (4, 4); returns
-    (condition, status). P (4, 3) and C (20,) are the actuator points and the spring compliances
-    of the packed G (:func:`_views`); the other arrays are scratch
-    (:func:`h4pin.stiffness.core.scratch`)."""
-    if not _inverse_geometry(px, py, pz, th, G, qo, A, B):
-        core.refuse(K, T, want_terms, Jo, want_jac)
-        return np.nan, 1
-    status = _limits_and_bars(th, G, qo, A, B)
-    _m1(px, py, pz, th, G, A, B, W, lw, M, g)
-    return core.finish(M, W, lw, A, P, g, C[0:4], C[4:8], C[8:12], C[12:20], model, status, K, T, want_terms, Jo,
-                       want_jac, Y, Gc, ws, d)
+def _readonly(x: np.ndarray) -> np.ndarray:
+    """A read-only view (one type for every caller: no second compiled version)."""
+    if not x.flags.writeable:
+        return x
+    v = x.view()
+    v.setflags(write=False)
+    return v
 
 
-@njit(cache=True, nogil=True)
-def _views(G):
-    """The actuator points P (4, 3) and the spring compliances (20,) of the packed G."""
-    return G[_P:_P + 12].reshape(4, 3), G[_CCTRL:_CTENS + 8]
+def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> KernelResult:
+    """The pipeline over all the poses of x (N, 4) C-contiguous float64 into ``res`` (of its size),
+    on numba's number of threads: one contiguous run of whole blocks a thread, the calling thread
+    taking the first (the compiled code releases the GIL). Python threads and not a ``prange``:
+    a parallel numba function recompiles the pipeline under its own options (four times the
+    compile time for the same speed)."""
+    n = len(x)
+    if not n:
+        return res
+    x = _readonly(x)
+    T = res.terms if terms else NO_TERMS_N
+    J = res.J if jacobian else NO_J_N
+    args = (kern.packed, kern.elements, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian)
+    threads = min(numba.get_num_threads(), -(-n // pipeline.LANES)) if n >= PARALLEL_FROM else 1
+    if threads <= 1:
+        _call("run", x, 0, n, *args)
+        return res
+    step = pipeline.LANES * -(-n // (pipeline.LANES * threads))
+    bounds = [(lo, min(n, lo + step)) for lo in range(0, n, step)]
+    if "run" not in _ENTRIES:
+        _call("run", x, 0, 1, *args)  # the entry point, known before the threads start
+    futures = [_pool().submit(_call, "run", x, lo, hi, *args) for lo, hi in bounds[1:]]
+    _call("run", x, *bounds[0], *args)
+    for f in futures:
+        f.result()
+    return res
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH)
-def _one(x, G, model, want_terms, K, q, T):
-    """One pose x (4,) into K (8, 8), q (4,) and, with ``want_terms``, T (4, 8, 8) (else T is not
-    touched: :data:`NO_TERMS`), with one scratch allocation; returns (condition, status), status
-    5 (K, q NaN) for a pose that is not finite. The caller allocates the outputs: a compiled
-    function that returns arrays pays for boxing them (about 0.3 us each)."""
-    px, py, pz, th = x[0], x[1], x[2], x[3]
-    if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz) and math.isfinite(th)):
-        K[:, :] = np.nan
-        q[:] = np.nan
-        return np.nan, 5
-    n = core.SCRATCH + 16
-    buf = np.empty(n)
-    A, B, W, lw, M, Y, Gc, ws, g, d = core.scratch_in(buf)
-    J = buf[core.SCRATCH:n].reshape(4, 4)
-    P, C = _views(G)
-    return _pose(px, py, pz, th, G, P, C, model, K, q, T, want_terms, J, False, A, B, W, lw, M, Y, Gc, ws, g, d)
-
-
-#: The T argument of :func:`_one` without terms (never written).
-NO_TERMS = np.empty((4, 8, 8))
-
-_ONE_ENTRY: list[Any] = []
-
-
-def one_into(x: np.ndarray, G: np.ndarray, code: int, want_terms: bool, K: np.ndarray, q: np.ndarray,
-             T: np.ndarray) -> tuple[float, int]:
-    """:func:`_one` for the argument types of :func:`h4pin.compliance`'s one-pose path (x a
-    read-only C float64 (4,) copy, the packed G, outputs from ``np.empty``), through the compiled
-    entry point of that one overload: it skips the dispatcher's typing of seven arguments (0.14 of
-    about 2 us). The first call goes through the dispatcher and looks the overload up by the types
-    it was given; a numba without ``entry_point`` keeps the dispatcher."""
-    if _ONE_ENTRY:
-        return _ONE_ENTRY[0](x, G, code, want_terms, K, q, T)
-    out = _one(x, G, code, want_terms, K, q, T)
-    sig = tuple(numba.typeof(a) for a in (x, G, code, want_terms, K, q, T))
-    overload = _one.overloads.get(sig)
-    _ONE_ENTRY.append(getattr(overload, "entry_point", None) or _one)
-    return out
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _block(poses, lo, hi, G, P, C, model, K, q, cond, status, T, want_terms, J, want_jac):
-    """Poses lo..hi-1 with one set of scratch arrays."""
-    A, B, W, lw, M, Y, Gc, ws, g, d = core.scratch()
-    for p in range(lo, hi):
-        tp = T[p] if want_terms else T[0]
-        jp = J[p] if want_jac else J[0]
-        c, s = _pose(poses[p, 0], poses[p, 1], poses[p, 2], poses[p, 3], G, P, C, model, K[p], q[p], tp,
-                     want_terms, jp, want_jac, A, B, W, lw, M, Y, Gc, ws, g, d)
-        cond[p] = c
-        status[p] = s
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH, parallel=True)
-def _batch(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
-    n = poses.shape[0]
-    nblocks = (n + block - 1) // block
-    P, C = _views(G)
-    for bi in prange(nblocks):
-        _block(poses, bi * block, min(n, (bi + 1) * block), G, P, C, model, K, q, cond, status, T, want_terms, J,
-               want_jac)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=core.FASTMATH)
-def _batch_serial(poses, G, model, K, q, cond, status, T, want_terms, J, want_jac, block):
-    """:func:`_batch` without threads, for small batches (no thread start-up, no wake-up latency)."""
-    P, C = _views(G)
-    _block(poses, 0, poses.shape[0], G, P, C, model, K, q, cond, status, T, want_terms, J, want_jac)
-
-
-#: Batches smaller than this run serially (:func:`_batch_serial`): waking the thread pool costs
-#: about as much as a few hundred poses (``scripts/bench.py``, small-batch rows).
-SERIAL_BELOW = 2 * _BLOCK
-
-#: Whether the one-pose and the batch kernels are compiled (:mod:`h4pin._jit`): until then
-#: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call.
-ONE = _jit.Gate("one-pose kernel", _one)
-BATCH = _jit.Gate("batch kernel", _batch, _batch_serial)
-
-
-# ----------------------------------------------------------------------------------------------
-# Python API
-
-
-def _empty(n: int, terms: bool, jacobian: bool) -> KernelResult:
+def _empty(n: int, terms: bool, jacobian: bool, kinds: int = 0) -> KernelResult:
     return KernelResult(np.empty((n, 8, 8)), np.empty((n, 4)), np.empty(n), np.empty(n, dtype=np.int8),
-                        np.empty((n, 4, 8, 8)) if terms else None, np.empty((n, 4, 4)) if jacobian else None)
+                        np.empty((n, 4 + kinds, 8, 8)) if terms else None, np.empty((n, 4, 4)) if jacobian else None)
 
 
-def _check_out(out: KernelResult, n: int, terms: bool, jacobian: bool) -> KernelResult:
+def _check_out(out: KernelResult, n: int, terms: bool, jacobian: bool, kinds: int) -> KernelResult:
     shapes = {"K": (n, 8, 8), "q": (n, 4), "condition": (n,), "status": (n,)}
     if terms:
-        shapes["terms"] = (n, 4, 8, 8)
+        shapes["terms"] = (n, 4 + kinds, 8, 8)
     if jacobian:
         shapes["J"] = (n, 4, 4)
     for name, shape in shapes.items():
         arr = getattr(out, name)
         want = np.int8 if name == "status" else np.float64
-        if arr is None or arr.shape != shape or arr.dtype != want:
-            raise ParameterError(f"out.{name} must be a {np.dtype(want).name} array of shape {shape}")
+        if (not isinstance(arr, np.ndarray) or arr.shape != shape or arr.dtype != want
+                or not arr.flags.c_contiguous or not arr.flags.writeable):
+            raise ParameterError(f"out.{name} must be a writable C-contiguous {np.dtype(want).name} array of "
+                                 f"shape {shape}")
     return out
 
 
+#: The T argument of :func:`one` without terms (never written).
+NO_TERMS = np.empty((4, 8, 8))
+
+
+def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
+    """One pose through the pipeline's one-pose entry (:func:`h4pin.stiffness.pipeline.one`), for
+    a caller that has checked it: ``x`` a read-only finite float64 pose (4,), ``code`` 0 (paper)
+    or 1 (consistent). Returns K (8, 8), q (4,), condition, status and the terms (4 + kinds, 8,
+    8) (None unless ``terms``)."""
+    K, q = np.empty((8, 8)), np.empty(4)
+    T = np.empty((4 + int(kern.elements[0]), 8, 8)) if terms else NO_TERMS
+    entry = _ENTRIES.get("one")
+    if entry is not None:
+        cond, status = entry(x, kern.packed, kern.elements, code, K, q, T, terms)
+    else:
+        args = (_readonly(x), kern.packed, kern.elements, code, K, q, T, terms)
+        cond, status = pipeline.one(*args)
+        overload = getattr(pipeline.one, "overloads", {}).get(tuple(numba.typeof(a) for a in args))
+        if overload is not None and getattr(overload, "entry_point", None) is not None:
+            _ENTRIES["one"] = overload.entry_point
+    return K, q, cond, status, T if terms else None
+
+
 def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: KernelResult | None = None, *,
-                     terms: bool = False, jacobian: bool = False, vector: bool | None = None) -> KernelResult:
-    """K of eq. 30, q, the condition and the verdict at N poses, in parallel over the poses.
+                     terms: bool = False, jacobian: bool = False) -> KernelResult:
+    """K of eq. 30 (with the kernel's elements: :meth:`Kernel.with_elements`), q, the condition
+    and the verdict at N poses, in parallel over the poses.
 
     Args:
         g: A geometry (see :func:`prepare`) or a :class:`Kernel`.
         poses: (N, 4) or (4,) poses [x, y, z, theta] (m, rad).
         model: ``"paper"`` or ``"consistent"`` (see :mod:`h4pin.stiffness.api`).
-        out: Arrays to fill (a :class:`KernelResult` of the right shapes, e.g. memory-mapped
-            files); allocated if None.
-        terms: Also return the four terms (4 x 512 bytes a pose more).
+        out: Arrays to fill (a :class:`KernelResult` of the right shapes, writable and
+            C-contiguous, e.g. memory-mapped files); allocated if None.
+        terms: Also return the terms (eq. 30's four, then one per element kind on; 512 bytes a
+            term a pose).
         jacobian: Also return J = Jx^-1 Jq (eq. 8).
-        vector: Which compiled kernel: ``None`` (default) the vector kernel
-            (:mod:`h4pin.stiffness.vector`, poses in lanes) from :data:`h4pin.stiffness.vector.VECTOR_FROM`
-            poses once it is compiled, else this module's (one pose at a time); ``True`` /
-            ``False`` the one or the other. The same numbers to round-off, the same verdicts.
 
     The number of threads is numba's (``numba.set_num_threads``).
     """
@@ -505,33 +476,9 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     code = _model_code(model)
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
-    res = _empty(len(x), terms, jacobian) if out is None else _check_out(out, len(x), terms, jacobian)
-    return _run(kern, x, code, res, terms, jacobian, vector)
-
-
-def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
-         vector: bool | None = None) -> KernelResult:
-    """:func:`compliance_batch` on checked input: x (N, 4) C-contiguous float64, res of its size."""
-    n = len(x)
-    if n and (vector or (vector is None and n >= lanes.VECTOR_FROM and lanes.VECTOR.ready)):
-        lanes.run(kern, x, code, res, terms, jacobian)
-        return res
-    T = res.terms if terms else NO_TERMS_N
-    J = res.J if jacobian else NO_J_N
-    if n:
-        run = _batch if n >= SERIAL_BELOW else _batch_serial
-        run(x, kern.packed, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian, _BLOCK)
-    return res
-
-
-def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
-    """:meth:`Kernel.__call__` without its checks, for a caller that has checked them: ``x`` a
-    finite float64 pose (4,), ``code`` 0 (paper) or 1 (consistent). Returns K, q, condition,
-    status and the terms (4, 8, 8) (None unless ``terms``)."""
-    K, q = np.empty((8, 8)), np.empty(4)
-    T = np.empty((4, 8, 8)) if terms else NO_TERMS
-    cond, status = _one(x, kern.packed, code, terms, K, q, T)
-    return K, q, cond, status, T if terms else None
+    res = (_empty(len(x), terms, jacobian, kern.kinds) if out is None
+           else _check_out(out, len(x), terms, jacobian, kern.kinds))
+    return _run(kern, x, code, res, terms, jacobian)
 
 
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -541,20 +488,14 @@ def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.n
 
 
 def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str = "paper", *, chunk: int = CHUNK,
-                    terms: bool = False, jacobian: bool = False,
-                    vector: bool | None = None) -> Iterator[tuple[int, KernelResult]]:
-    """Stream the kernel over many poses in chunks: yields ``(start, result)`` per chunk.
+                    terms: bool = False, jacobian: bool = False) -> Iterator[tuple[int, KernelResult]]:
+    """Stream the pipeline over many poses in chunks: yields ``(start, result)`` per chunk.
 
     ``poses`` is an (N, 4) array (cut into ``chunk`` rows) or an iterable of (n, 4) arrays (each
     one a chunk, e.g. generated on the fly). The result's arrays are reused from one chunk to
     the next: reduce or copy them before asking for the next one. Memory stays at one chunk.
-    ``vector`` as in :func:`compliance_batch`, except that ``None`` chooses once for the whole
-    stream (the vector kernel if it is compiled), so that the numbers do not depend on how the
-    poses are cut.
     """
     kern = prepare(g)
-    if vector is None:
-        vector = bool(lanes.VECTOR.ready)
     if chunk < 1:
         raise ParameterError(f"chunk must be >= 1, got {chunk!r}")
     if isinstance(poses, np.ndarray):
@@ -568,43 +509,52 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
     for part in parts:
         n = len(part)
         if buf is None or len(buf.K) < n:
-            buf = _empty(max(n, chunk), terms, jacobian)
+            buf = _empty(max(n, chunk), terms, jacobian, kern.kinds)
         view = KernelResult(*(None if a is None else a[:n] for a in buf))
-        yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian, vector=vector)
+        yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian)
         start += n
 
 
 def cached() -> bool:
-    """Whether the compiled kernels are ready (compiled here, or current in numba's on-disk
-    cache); else a call that needs them compiles them, 10 to 30 s once."""
+    """Whether the compiled pipeline is ready (compiled here, or current in numba's on-disk
+    cache); else a call that needs it compiles it once."""
     return ONE.cached() and BATCH.cached()
 
 
 def threads() -> int:
-    """numba's current number of threads for the batch kernel."""
+    """numba's current number of threads for the pipeline."""
     return numba.get_num_threads()
 
 
-_KERNELS: dict[int, Kernel] = {}
+_KERNELS: dict[tuple[int, int], Kernel] = {}
 
 
-def for_geometry(g: H4Geometry) -> Kernel:
-    """The packed kernel of a loaded robot's geometry, made once per geometry (a read-only cache
-    keyed by the immutable :class:`h4pin.H4Geometry`, outside it; threads may share it). Keyed by
-    ``id(g)`` and dropped when ``g`` is (a plain dict lookup: a WeakKeyDictionary costs 0.6 us)."""
-    kern = _KERNELS.get(id(g))
+def for_geometry(g: H4Geometry, elements: Elements | None = None) -> Kernel:
+    """The packed kernel of a loaded robot's geometry and of ``elements`` (None: eq. 30 alone),
+    made once per pair (a read-only cache keyed by the immutable :class:`h4pin.H4Geometry` and
+    :class:`h4pin.Elements`, outside them; threads may share it). Keyed by their ids and dropped
+    when either goes (a plain dict lookup: a WeakKeyDictionary costs 0.6 us)."""
+    key = (id(g), id(elements))
+    kern = _KERNELS.get(key)
     if kern is None:
-        kern = prepare(g)
-        if _KERNELS.setdefault(id(g), kern) is kern:
-            weakref.finalize(g, _KERNELS.pop, id(g), None)
+        kern = prepare(g) if elements is None else for_geometry(g).with_elements(elements)
+        if _KERNELS.setdefault(key, kern) is kern:
+            weakref.finalize(g, _KERNELS.pop, key, None)
+            if elements is not None:
+                weakref.finalize(elements, _KERNELS.pop, key, None)
     return kern
 
 
-def backend(h4, x: np.ndarray, model: str, terms: bool):
-    """The kernel as a backend of :func:`h4pin.compliance` (:class:`h4pin.stiffness.eq30.Raw`);
-    robots whose parallelograms are exact."""
+def backend(h4, x: np.ndarray, model: str, terms: bool, elements: Elements | None = None):
+    """The pipeline as a backend of :func:`h4pin.compliance` (:class:`h4pin.stiffness.eq30.Raw`):
+    eq. 30 and the terms of ``elements``; robots whose parallelograms are exact."""
     from h4pin.stiffness.eq30 import Raw
 
-    res = _run(for_geometry(h4.geometry), x, MODELS.index(model), _empty(len(x), terms, False), terms,
-               False)  # x: the caller's checked (N, 4) finite poses
+    kern = for_geometry(h4.geometry, elements)
+    res = _run(kern, x, MODELS.index(model), _empty(len(x), terms, False, kern.kinds), terms, False)
     return Raw(res.K, res.terms, res.q, res.condition, res.status)
+
+
+__all__ = ["BATCH", "CHUNK", "ONE", "PARALLEL_FROM", "Kernel", "KernelResult", "backend", "cached", "compliance_batch",
+           "compliance_one", "for_geometry", "iter_compliance", "one", "pack", "pack_elements", "pack_fields",
+           "prepare", "threads"]

@@ -13,13 +13,16 @@ import numpy as np
 
 from h4pin.kinematics import closed_form as cf
 from h4pin.stiffness import eq30
+from h4pin.stiffness.elements import add_terms
 from h4pin.stiffness.eq30 import Raw
 from h4pin.stiffness.matrices import products
 from h4pin.verdicts import OK, SINGULAR, SINGULAR_COND, UNREACHABLE
 
 
-def backend(h4, x: np.ndarray, model: str, terms: bool) -> Raw:
-    """Eq. 30 at poses x (N, 4) (finite) of robot ``h4`` (:class:`h4pin.stiffness.eq30.Raw`)."""
+def backend(h4, x: np.ndarray, model: str, terms: bool, elements=None) -> Raw:
+    """Eq. 30 at poses x (N, 4) (finite) of robot ``h4`` (:class:`h4pin.stiffness.eq30.Raw`),
+    with the terms of ``elements`` (:class:`h4pin.Elements` or None) by the statics route of
+    :mod:`h4pin.stiffness.elements`."""
     g = h4.geometry
     n = len(x)
     sol = cf.solve(g, x)
@@ -43,7 +46,7 @@ def backend(h4, x: np.ndarray, model: str, terms: bool) -> Raw:
             matrix[sel] = sum(part.values())
             if out is not None:
                 out[sel] = np.stack([part[t] for t in eq30.TERMS], axis=1)
-    return Raw(matrix, out, q, cond, status)
+    return add_terms(g, x, Raw(matrix, out, q, cond, status), elements)
 
 
 __all__ = ["backend"]

@@ -1,12 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-"""What the two compiled kernels share: the layout of the packed geometry vector (offsets into
-one float64 array, filled by :func:`h4pin.stiffness.kernel.pack`), their result,
-:class:`KernelResult`, and the placeholders of the outputs a batch run does not write.
+"""What the compiled pipeline and its Python front end share: the layouts of the packed geometry
+vector and of the element table (offsets into float64 arrays, filled by
+:func:`h4pin.stiffness.kernel.pack` and :func:`h4pin.stiffness.kernel.pack_elements`), the result,
+:class:`KernelResult`, and the placeholders of the outputs a run does not write.
 
-:mod:`h4pin.stiffness.kernel` (one pose at a time, and the front end that chooses) and
-:mod:`h4pin.stiffness.vector` (poses in lanes) both import it; neither imports the other's
-internals through it. numba freezes these offsets into the compiled code (the cache stamps follow
-the import: :mod:`h4pin._numba_cache`).
+:mod:`h4pin.stiffness.pipeline` (compiled) and :mod:`h4pin.stiffness.kernel` (Python) both import
+it. numba freezes these offsets into the compiled code (the cache stamps follow the import:
+:mod:`h4pin._numba_cache`).
 """
 
 from __future__ import annotations
@@ -40,14 +40,21 @@ _WHI = 208  # (2,)
 _CLEAR = 210
 _SIZE = 211
 
+# Layout of the element table (one float64 array, :func:`h4pin.stiffness.kernel.pack_elements`):
+# [number of kinds on | one row per kind on: site, form, axis, count, offset of its values |
+# per element of the kind: compliance (its value, or 1 / rigidity, times ``series``), length (m)].
+EL_HEADER = 1
+EL_ROW = 5
+
 
 class KernelResult(NamedTuple):
     """Output of the kernel for N poses (SI).
 
-    K (N, 8, 8) of eq. 30 (NaN unless status is 0); q (N, 4) actuator angles, rad (NaN if
-    unreachable); condition (N,) scaled 1-norm condition number of M1; status (N,) int8 (see the
-    module docstring); terms (N, 4, 8, 8) control, bending, torsion, tension (or None);
-    J (N, 4, 4) = Jx^-1 Jq of eq. 8 (or None).
+    K (N, 8, 8) of eq. 30 and the elements (NaN unless status is 0); q (N, 4) actuator angles,
+    rad (NaN if unreachable); condition (N,) scaled 1-norm condition number of M1; status (N,)
+    int8 (:mod:`h4pin.verdicts`); terms (N, 4 + kinds on, 8, 8): control, bending, torsion,
+    tension, then one per element kind that is on (or None); J (N, 4, 4) = Jx^-1 Jq of eq. 8 (or
+    None).
     """
 
     K: np.ndarray
@@ -58,10 +65,13 @@ class KernelResult(NamedTuple):
     J: np.ndarray | None = None
 
 
-#: The T and J arguments of a batch run without terms or without J (never written: the kernels
-#: write them only when asked for them).
+#: The T and J arguments of a run without terms or without J (never written: the pipeline writes
+#: them only when asked for them).
 NO_TERMS_N = np.empty((1, 4, 8, 8))
 NO_J_N = np.empty((1, 4, 4))
+#: The element table of a robot with every element off.
+NO_ELEMENTS = np.zeros(EL_HEADER)
+NO_ELEMENTS.setflags(write=False)
 
 
-__all__ = ["NO_J_N", "NO_TERMS_N", "KernelResult"]
+__all__ = ["EL_HEADER", "EL_ROW", "NO_ELEMENTS", "NO_J_N", "NO_TERMS_N", "KernelResult"]

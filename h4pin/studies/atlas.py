@@ -70,13 +70,14 @@ def _axis(name: str, values: Any) -> np.ndarray:
 
 
 def _geometry(source: Any) -> tuple[Any, str]:
-    """The kernel of ``source``, or the robot itself when the kernel alone does not give its
-    compliance (a robot whose parallelograms are not exact, or that carries optional elements,
-    goes through :func:`h4pin.compliance`, :func:`_robot_chunks`)."""
+    """The kernel of ``source`` (with the robot's optional elements), or the robot itself when
+    the compiled pipeline does not take it (a robot whose parallelograms are not exact goes
+    through :func:`h4pin.compliance`, :func:`_robot_chunks`)."""
     g = getattr(source, "geometry", None)  # an h4pin.H4: its geometry read from the URDF
     if g is not None:
         name = Path(str(getattr(source, "source", "H4"))).name
-        return (kernel.for_geometry(g), name) if g.ideal and source.elements.off else (source, name)
+        elements = None if source.elements.off else source.elements
+        return (kernel.for_geometry(g, elements), name) if g.ideal else (source, name)
     if isinstance(source, H4Params):
         return kernel.prepare(geometry_from_params(source)), "H4Params"
     return kernel.prepare(source), type(source).__name__
@@ -84,7 +85,8 @@ def _geometry(source: Any) -> tuple[Any, str]:
 
 def _robot_chunks(h4: Any, chunks: Any, model: str) -> Any:
     """``(start, result)`` like :func:`h4pin.stiffness.kernel.iter_compliance`, from
-    :func:`h4pin.compliance` (its elements included; J of eq. 8 from the closed forms)."""
+    :func:`h4pin.compliance` (its elements included; J of eq. 8 from the closed forms): the
+    route of robots whose parallelograms are not exact."""
     from h4pin.kinematics import closed_form as geometry
     from h4pin.stiffness.api import compliance
     from h4pin.stiffness.matrices import from_points
@@ -238,11 +240,13 @@ def partial_path(path: str | Path) -> Path:
 
 
 def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tuple[int, ...]) -> str:
-    """What fixes the numbers of a streamed atlas: the robot (packed kernel geometry, or the URDF
-    and elements of a robot on the numpy path), the grid, the model and the blocks."""
+    """What fixes the numbers of a streamed atlas: the robot (packed kernel geometry and element
+    table, or the URDF and elements of a robot on the numpy path), the grid, the model and the
+    blocks."""
     h = hashlib.sha256()
     if isinstance(kern, kernel.Kernel):
         h.update(np.ascontiguousarray(kern.packed).tobytes())
+        h.update(np.ascontiguousarray(kern.elements).tobytes())
     else:
         h.update(str(getattr(kern, "urdf", "")).encode())
         h.update(repr(getattr(kern, "elements", "")).encode())

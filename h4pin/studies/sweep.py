@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
 from h4pin.extras import require
@@ -99,6 +100,9 @@ class Spec:
     volume: VolumeGrid = VolumeGrid()
     model: str = "consistent"
     chunk: int = 64
+    #: The compliant elements every design carries (:class:`h4pin.Elements` fields, SI; none by
+    #: default: eq. 30 alone), in the compiled pipeline with each design's own beam lengths.
+    elements: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -120,10 +124,21 @@ class Spec:
             raise ParameterError(f"bounds must give {tuple(VARIABLES)}, got {tuple(self.bounds)}")
         object.__setattr__(self, "bounds", {k: tuple(float(v) for v in self.bounds[k]) for k in VARIABLES})
         kernel._model_code(self.model)
+        self.element_set()  # checked now: a bad name or value is refused before any work
 
     @property
     def n_chunks(self) -> int:
         return -(-self.n_designs // self.chunk)
+
+    def element_set(self) -> Elements | None:
+        """The designs' :class:`h4pin.Elements` (None when none is on)."""
+        if not isinstance(self.elements, dict):
+            raise ParameterError(f"elements must be a dict of h4pin.Elements fields, got {self.elements!r}")
+        unknown = set(self.elements) - set(ELEMENTS)
+        if unknown:
+            raise ParameterError(f"unknown element kinds {sorted(unknown)}; the kinds are {ELEMENTS}")
+        el = Elements(**self.elements)
+        return None if el.off else el
 
 
 def designs(spec: Spec) -> np.ndarray:
@@ -172,8 +187,9 @@ def params_of(row: np.ndarray, base: H4Params | None = None) -> H4Params:
     return base.replace(**{name: v[0] for name, v in _design_arrays(row, base).items()})
 
 
-def _kernels(rows: np.ndarray) -> list[kernel.Kernel | None]:
-    """The packed kernels of many design rows at once (None for an invalid design): the design
+def _kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.Kernel | None]:
+    """The packed kernels of many design rows at once (None for an invalid design), with the
+    table of ``elements`` for each (its beam lengths are the design's): the design
     arrays of all rows (:func:`_design_arrays`), then the validity checks of H4Params
     (:func:`~h4pin.description.params.ball_joints_apart`, :func:`~h4pin.description.params.bars_reach`),
     the geometry (:func:`~h4pin.description.geometry.geometry_arrays`) and the packing
@@ -192,7 +208,11 @@ def _kernels(rows: np.ndarray) -> list[kernel.Kernel | None]:
     G = kernel.pack_fields(geometry_arrays(d["P"], base.U, base.forearm_dirs, d["r"], d["l"], d["half_width"],
                                            d["DB"], d["DC"], springs))
     packed = iter(G)
-    return [kernel.Kernel.from_packed(next(packed)) if ok else None for ok in valid]
+    out = []
+    for ok in valid:
+        g = next(packed) if ok else None
+        out.append(None if g is None else kernel.Kernel.from_packed(g, kernel.pack_elements(elements, g)))
+    return out
 
 
 def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
@@ -213,7 +233,7 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
            "volume": np.full(n, np.nan), "task_ok": np.zeros(n, np.int32)}
     buf = kernel._empty(len(poses), False, False)
     n_task = len(task)
-    for d, kern in enumerate(_kernels(rows)):
+    for d, kern in enumerate(_kernels(rows, spec.element_set())):
         if kern is None:
             continue
         res = kernel.compliance_batch(kern, poses, spec.model, buf)
