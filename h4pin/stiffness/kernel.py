@@ -66,6 +66,7 @@ from h4pin.stiffness.packed import (
     NO_ELEMENTS,
     NO_J_N,
     NO_TERMS_N,
+    NO_X_N,
     KernelResult,
 )
 
@@ -337,7 +338,7 @@ def _model_code(model: str) -> int:
 #: Whether the pipeline's entries are compiled (:mod:`h4pin._jit`): until then
 #: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call. One
 #: pose (:func:`h4pin.stiffness.pipeline.one`) is compiled first.
-ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one)
+ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one, pipeline._run1)
 BATCH = _jit.Gate("compiled pipeline, batch", pipeline.run)
 
 _POOL: list[concurrent.futures.ThreadPoolExecutor] = []
@@ -383,19 +384,22 @@ def _readonly(x: np.ndarray) -> np.ndarray:
     return v
 
 
-def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool) -> KernelResult:
+def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
+         inter: np.ndarray | None = None) -> KernelResult:
     """The pipeline over all the poses of x (N, 4) C-contiguous float64 into ``res`` (of its size),
     on numba's number of threads: one contiguous run of whole blocks a thread, the calling thread
     taking the first (the compiled code releases the GIL). Python threads and not a ``prange``:
     a parallel numba function recompiles the pipeline under its own options (four times the
-    compile time for the same speed)."""
+    compile time for the same speed). ``inter``: (N, :data:`h4pin.stiffness.pipeline.NX`) to
+    receive each pose's intermediates (M1^-1, the factors of eq. 30, the lane scratch)."""
     n = len(x)
     if not n:
         return res
     x = _readonly(x)
     T = res.terms if terms else NO_TERMS_N
     J = res.J if jacobian else NO_J_N
-    args = (kern.packed, kern.elements, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian)
+    args = (kern.packed, kern.elements, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian,
+            NO_X_N if inter is None else inter, inter is not None)
     threads = min(numba.get_num_threads(), -(-n // pipeline.LANES)) if n >= PARALLEL_FROM else 1
     if threads <= 1:
         _call("run", x, 0, n, *args)
@@ -432,22 +436,25 @@ def _check_out(out: KernelResult, n: int, terms: bool, jacobian: bool, kinds: in
     return out
 
 
-#: The T argument of :func:`one` without terms (never written).
+#: The T and X arguments of :func:`one` without terms or intermediates (never written).
 NO_TERMS = np.empty((4, 8, 8))
+NO_X = np.empty(1)
 
 
-def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False) -> tuple:
+def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False, inter: np.ndarray | None = None) -> tuple:
     """One pose through the pipeline's one-pose entry (:func:`h4pin.stiffness.pipeline.one`), for
     a caller that has checked it: ``x`` a read-only finite float64 pose (4,), ``code`` 0 (paper)
-    or 1 (consistent). Returns K (8, 8), q (4,), condition, status and the terms (4 + kinds, 8,
-    8) (None unless ``terms``)."""
+    or 1 (consistent); ``inter`` (:data:`h4pin.stiffness.pipeline.NX`,) receives the pose's
+    intermediates. Returns K (8, 8), q (4,), condition, status and the terms (4 + kinds, 8, 8)
+    (None unless ``terms``)."""
     K, q = np.empty((8, 8)), np.empty(4)
     T = np.empty((4 + int(kern.elements[0]), 8, 8)) if terms else NO_TERMS
+    X = NO_X if inter is None else inter
     entry = _ENTRIES.get("one")
     if entry is not None:
-        cond, status = entry(x, kern.packed, kern.elements, code, K, q, T, terms)
+        cond, status = entry(x, kern.packed, kern.elements, code, K, q, T, terms, X, inter is not None)
     else:
-        args = (_readonly(x), kern.packed, kern.elements, code, K, q, T, terms)
+        args = (_readonly(x), kern.packed, kern.elements, code, K, q, T, terms, X, inter is not None)
         cond, status = pipeline.one(*args)
         overload = getattr(pipeline.one, "overloads", {}).get(tuple(numba.typeof(a) for a in args))
         if overload is not None and getattr(overload, "entry_point", None) is not None:

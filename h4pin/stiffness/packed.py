@@ -69,9 +69,10 @@ class KernelResult(NamedTuple):
 #: them only when asked for them).
 NO_TERMS_N = np.empty((1, 4, 8, 8))
 NO_J_N = np.empty((1, 4, 4))
+NO_X_N = np.empty((1, 1))
 #: The element table of a robot with every element off.
 NO_ELEMENTS = np.zeros(EL_HEADER)
 NO_ELEMENTS.setflags(write=False)
 
 
-__all__ = ["EL_HEADER", "EL_ROW", "NO_ELEMENTS", "NO_J_N", "NO_TERMS_N", "KernelResult"]
+__all__ = ["EL_HEADER", "EL_ROW", "NO_ELEMENTS", "NO_J_N", "NO_TERMS_N", "NO_X_N", "KernelResult"]

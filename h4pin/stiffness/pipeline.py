@@ -831,99 +831,102 @@ def _scratch(lanes, kinds, want_terms):
             buf[o[10]:o[10] + sizes[10]].reshape(8, 8, ne), buf[o[11]:o[11] + sizes[11]].reshape(8, 8, ne))
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-def run(poses, start, stop, G, EG, model, K, qo, cond, status, T, want_terms, J, want_jac):  # pragma: no cover
-    """Poses start .. stop - 1 of ``poses`` (N, 4) into K (N, 8, 8), qo (N, 4), cond (N,), status
-    (N,) int8, with ``want_terms`` the terms into T (N, 4 + kinds on, 8, 8) (eq. 30's four, then
-    one per row of the element table EG), with ``want_jac`` J of eq. 8 (rows 0, 1, 2, 5 of
-    M1^-1 M2 M3) into J (N, 4, 4); NaN where the verdict is not 0. G is the packed geometry
-    (:mod:`h4pin.stiffness.packed`); model 0 ``"paper"``, 1 ``"consistent"``. Blocks of
-    :data:`LANES` lanes, a compile-time constant in every lane loop."""
-    scratch = _scratch(LANES, int(EG[0]), want_terms)
-    for p0 in range(start, stop, LANES):
-        nl = min(LANES, stop - p0)
-        S, M, Y, R, Bk, H, F, U, TB, X, E, Z = scratch
+#: Width of one pose's row of the intermediates (:func:`run`'s ``X``): M1^-1 (64), the factors
+#: of eq. 30 (:data:`_XF` rows of F) and every row of the lane scratch S.
+_XF = _YS
+NX = 64 + _XF + _ROWS
+#: Where each part starts in a row of ``X``.
+X_Y, X_F, X_S = 0, 64, 64 + _XF
+
+
+def _entry(lanes: int):
+    """The pipeline over poses ``start .. stop - 1`` in blocks of ``lanes`` lanes, ``lanes`` a
+    constant of the compiled code (a closure: each entry is compiled on its own, the stages
+    inlined straight into it; a shared inlined block function costs numba 1.7 times the compile
+    time and twice the memory)."""
+
+    def entry(poses, start, stop, G, EG, model, K, qo, cond, status, T, want_terms, J, want_jac, Xo,
+              want_x):  # pragma: no cover - compiled
         kinds = int(EG[0])
-        _load(poses, p0, nl, LANES, G, S)
-        nl, nr = LANES, nl  # every stage runs the whole block (a constant trip count); nr are real
-        _legs(G, nl, S)
-        _angles(G, nl, S)
-        _bars(G, nl, S, H)
-        _matrix(G, nl, S, M, Bk)
-        _invert(nl, S, M, Y, Bk, R)
-        _factors(G, nl, S, Y, F)
-        _assemble(G, model, nl, F, Y, U, M, TB, want_terms)  # M1 is spent: M takes K
-        for row in range(kinds if want_terms else min(kinds, 1)):  # the element terms, added to K
-            _element_term(G, EG, nl, S, X, E, Y, Z, row if want_terms else -1)
-            for a in range(8):
-                for c in range(8):
-                    for l in range(nl):
-                        M[a, c, l] += E[a, c, l]
-            if want_terms:
+        S, M, Y, R, Bk, H, F, U, TB, X, E, Z = _scratch(lanes, kinds, want_terms)
+        for p0 in range(start, stop, lanes):
+            nl = min(lanes, stop - p0)
+            _load(poses, p0, nl, lanes, G, S)  # the last pose fills the lanes past nl
+            _legs(G, lanes, S)
+            _angles(G, lanes, S)
+            _bars(G, lanes, S, H)
+            _matrix(G, lanes, S, M, Bk)
+            _invert(lanes, S, M, Y, Bk, R)
+            _factors(G, lanes, S, Y, F)
+            _assemble(G, model, lanes, F, Y, U, M, TB, want_terms)  # M1 is spent: M takes K
+            for row in range(kinds if want_terms else min(kinds, 1)):  # the element terms, added to K
+                _element_term(G, EG, lanes, S, X, E, Y, Z, row if want_terms else -1)
                 for a in range(8):
                     for c in range(8):
+                        for l in range(lanes):
+                            M[a, c, l] += E[a, c, l]
+                if want_terms:
+                    for a in range(8):
+                        for c in range(8):
+                            for l in range(lanes):
+                                TB[4 + row, a, c, l] = E[a, c, l]
+            if want_jac:
+                for r in range(4):
+                    a = 5 if r == 3 else r
+                    for i in range(4):
                         for l in range(nl):
-                            TB[4 + row, a, c, l] = E[a, c, l]
-        if want_jac:
-            for r in range(4):
-                a = 5 if r == 3 else r
-                for i in range(4):
-                    for l in range(nr):
-                        J[p0 + l, r, i] = F[_GC + 4 * a + i, l]
-        _store(p0, nr, S, M, TB, 4 + kinds, K, qo, cond, status, T, want_terms)
-        if want_jac:
-            for l in range(nr):
-                if status[p0 + l] != OK:
-                    J[p0 + l] = np.nan
+                            J[p0 + l, r, i] = F[_GC + 4 * a + i, l]
+            if want_x:
+                for l in range(nl):
+                    for a in range(8):
+                        for n in range(8):
+                            Xo[p0 + l, X_Y + 8 * a + n] = Y[a, n, l]
+                    for r in range(_XF):
+                        Xo[p0 + l, X_F + r] = F[r, l]
+                    for r in range(_ROWS):
+                        Xo[p0 + l, X_S + r] = S[r, l]
+            _store(p0, nl, S, M, TB, 4 + kinds, K, qo, cond, status, T, want_terms)
+            if want_jac:
+                for l in range(nl):
+                    if status[p0 + l] != OK:
+                        J[p0 + l] = np.nan
+
+    return entry
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-def one(pose, G, EG, model, K, q, T, want_terms):  # pragma: no cover
-    """One pose (4,) as :func:`run` does it, into K (8, 8), q (4,) and with ``want_terms`` T
-    (4 + kinds on, 8, 8) (else not touched); returns (condition, status). One lane is a
-    compile-time constant here: LLVM turns every lane loop into straight-line code (a call of
-    :func:`run` for one pose runs the vectorised loops' set-ups and remainders, 4 to 6 us; this,
-    about 1 us). The caller allocates the outputs: a compiled function that returns arrays pays
-    for boxing them."""
+#: Width of one pose's row of the intermediates (:func:`run`'s ``Xo``): M1^-1 (64), the factors
+#: of eq. 30 (:data:`_XF` rows of F) and every row of the lane scratch S.
+_XF = _YS
+NX = 64 + _XF + _ROWS
+#: Where each part starts in a row of ``Xo``.
+X_Y, X_F, X_S = 0, 64, 64 + _XF
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
+#: The batch entry: ``run(poses, start, stop, G, EG, model, K, qo, cond, status, T, want_terms, J,
+#: want_jac, Xo, want_x)``: poses start .. stop - 1 of ``poses`` (N, 4) into K (N, 8, 8), qo (N,
+#: 4), cond (N,), status (N,) int8; with ``want_terms`` the terms into T (N, 4 + kinds on, 8, 8)
+#: (eq. 30's four, then one per row of the element table EG); with ``want_jac`` J of eq. 8 (rows
+#: 0, 1, 2, 5 of M1^-1 M2 M3) into J (N, 4, 4); with ``want_x`` each pose's intermediates into Xo
+#: (N, :data:`NX`) (for the natural frequencies, :mod:`h4pin.elastic.twin`); NaN where the verdict
+#: is not 0. G is the packed geometry (:mod:`h4pin.stiffness.packed`); model 0 ``"paper"``, 1
+#: ``"consistent"``. Blocks of :data:`LANES` lanes, a compile-time constant in every lane loop.
+run = njit(**_JIT)(_entry(LANES))
+_run1 = njit(**_JIT)(_entry(1))
+
+
+@njit(**_JIT)
+def one(pose, G, EG, model, K, q, T, want_terms, Xo, want_x):  # pragma: no cover
+    """One pose (4,) as :func:`run` does it, into K (8, 8), q (4,), with ``want_terms`` T
+    (4 + kinds on, 8, 8) and with ``want_x`` Xo (NX,) (else not touched); returns (condition,
+    status). One lane is a compile-time constant here: LLVM turns every lane loop into
+    straight-line code (a call of :func:`run` for one pose runs the vectorised loops' set-ups and
+    remainders, 4 to 6 us; this, about 1.5 us). The caller allocates the outputs: a compiled
+    function that returns arrays pays for boxing them."""
     cond = np.empty(1)
     status = np.empty(1, dtype=np.int8)
-    poses = pose.reshape(1, 4)
-    K, qo, T = K.reshape(1, 8, 8), q.reshape(1, 4), T.reshape(1, T.shape[0], 8, 8)
-    J, want_jac, p0, nl = np.empty((1, 4, 4)), False, 0, 1
-    scratch = _scratch(1, int(EG[0]), want_terms)
-    S, M, Y, R, Bk, H, F, U, TB, X, E, Z = scratch
-    kinds = int(EG[0])
-    _load(poses, p0, nl, 1, G, S)
-    _legs(G, nl, S)
-    _angles(G, nl, S)
-    _bars(G, nl, S, H)
-    _matrix(G, nl, S, M, Bk)
-    _invert(nl, S, M, Y, Bk, R)
-    _factors(G, nl, S, Y, F)
-    _assemble(G, model, nl, F, Y, U, M, TB, want_terms)  # M1 is spent: M takes K
-    for row in range(kinds if want_terms else min(kinds, 1)):  # the element terms, added to K
-        _element_term(G, EG, nl, S, X, E, Y, Z, row if want_terms else -1)
-        for a in range(8):
-            for c in range(8):
-                for l in range(nl):
-                    M[a, c, l] += E[a, c, l]
-        if want_terms:
-            for a in range(8):
-                for c in range(8):
-                    for l in range(nl):
-                        TB[4 + row, a, c, l] = E[a, c, l]
-    if want_jac:
-        for r in range(4):
-            a = 5 if r == 3 else r
-            for i in range(4):
-                for l in range(nl):
-                    J[p0 + l, r, i] = F[_GC + 4 * a + i, l]
-    _store(p0, nl, S, M, TB, 4 + kinds, K, qo, cond, status, T, want_terms)
-    if want_jac:
-        for l in range(nl):
-            if status[p0 + l] != OK:
-                J[p0 + l] = np.nan
+    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, K.reshape(1, 8, 8), q.reshape(1, 4), cond, status,
+          T.reshape(1, T.shape[0], 8, 8), want_terms, np.empty((1, 4, 4)), False, Xo.reshape(1, Xo.shape[0]), want_x)
     return cond[0], status[0]
 
 
-__all__ = ["CONSISTENT", "FASTMATH", "LANES", "PAPER", "atan2", "one", "run"]
+__all__ = ["CONSISTENT", "FASTMATH", "LANES", "NX", "PAPER", "X_F", "X_S", "X_Y", "atan2", "one", "run"]
