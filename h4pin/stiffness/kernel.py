@@ -338,7 +338,7 @@ def _model_code(model: str) -> int:
 #: Whether the pipeline's entries are compiled (:mod:`h4pin._jit`): until then
 #: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call. One
 #: pose (:func:`h4pin.stiffness.pipeline.one`) is compiled first.
-ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one, pipeline._run1)
+ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one)
 BATCH = _jit.Gate("compiled pipeline, batch", pipeline.run)
 
 _POOL: list[concurrent.futures.ThreadPoolExecutor] = []
