@@ -16,7 +16,7 @@ from h4pin import _compat  # noqa: E402, F401  (gives Pinocchio 3.x a RigidConst
 from h4pin.description.elements import Elements  # noqa: E402
 from h4pin.description.geometry import H4Geometry  # noqa: E402
 from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params  # noqa: E402
-from h4pin.elastic import ElasticH4, Modes, Payload, elastic_model, modes  # noqa: E402
+from h4pin.elastic import ElasticH4, Modes, Payload, elastic_model  # noqa: E402
 from h4pin.errors import (  # noqa: E402
     ConvergenceError,
     H4Error,
@@ -33,6 +33,7 @@ from h4pin.errors import (  # noqa: E402
 from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
 from h4pin.robot import H4, load  # noqa: E402
 from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
+from h4pin.stiffness.frequencies import Frequencies, modes  # noqa: E402
 
 __version__ = "0.1.0"
 
@@ -51,6 +52,7 @@ __all__ = [
     "ConvergenceError",
     "ElasticH4",
     "Elements",
+    "Frequencies",
     "H4Error",
     "H4Geometry",
     "H4Params",

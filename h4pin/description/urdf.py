@@ -132,17 +132,22 @@ class _Body:
         if mass > 0:
             self.masses.append((mass, np.asarray(c, float), 0.4 * mass * radius**2 * np.eye(3)))
 
+    def inertial(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """The link's mass (kg), centre of mass (3,) and inertia about it (3, 3) in its frame."""
+        if not self.masses:
+            return 0.0, np.zeros(3), np.zeros((3, 3))
+        m = sum(mi for mi, _, _ in self.masses)
+        com = sum(mi * ci for mi, ci, _ in self.masses) / m
+        inertia = sum(ii + mi * (np.dot(ci - com, ci - com) * np.eye(3) - np.outer(ci - com, ci - com))
+                      for mi, ci, ii in self.masses)
+        return m, com, inertia
+
     def xml(self, name: str, material: str, extra: str = "") -> str:
         out = [f'  <link name="{name}">']
         if extra:
             out.append(f"    {extra}")
         if self.masses:
-            m = sum(mi for mi, _, _ in self.masses)
-            com = sum(mi * ci for mi, ci, _ in self.masses) / m
-            inertia = sum(
-                ii + mi * (np.dot(ci - com, ci - com) * np.eye(3) - np.outer(ci - com, ci - com))
-                for mi, ci, ii in self.masses
-            )
+            m, com, inertia = self.inertial()
             ixx, ixy, ixz = inertia[0]
             iyy, iyz, izz = inertia[1, 1], inertia[1, 2], inertia[2, 2]
             out += [
@@ -196,6 +201,98 @@ def _plate_bar(elements: Elements | None, family: str, indices: Any) -> str:
     return f"<h4_plate_bar {' '.join(attrs)}/>" if attrs else ""
 
 
+def _forearm(p: H4Params, i: int) -> _Body:
+    """Forearm i: a solid round rod P_i -> A_i (second moment I), the cross-piece A_i1-A_i2 and
+    the two ball joints, in its joint's frame (origin P_i, world axes at q = 0)."""
+    a, u, h, r = p.forearm_dirs[:, i], p.U[:, i], p.half_width[i], p.r[i]
+    radius = (4.0 * p.I[i] / np.pi) ** 0.25  # solid round section with second moment I
+    body = _Body()
+    body.rod(np.zeros(3), r * a, radius, RHO_ALUMINIUM)
+    body.rod(r * a - h * u, r * a + h * u, radius * 0.6, RHO_ALUMINIUM)
+    for s in (1.0, -1.0):
+        body.ball(r * a + s * h * u, p.ball_radius)
+    return body
+
+
+def _cross(p: H4Params) -> _Body:
+    """A universal joint's cross (a small ball of :data:`CROSS_MASS`) at its centre A_ij."""
+    body = _Body()
+    body.ball(np.zeros(3), p.ball_radius * 0.5, CROSS_MASS)
+    return body
+
+
+def _bar(p: H4Params, n: int) -> _Body:
+    """Bar n: a carbon tube from A_ij (its frame's origin) to the bar end at (0, 0, -l) (its
+    frame at the neutral configuration: world axes), of cross-section Sb."""
+    body = _Body()
+    inner = np.sqrt(max(BAR_RADIUS**2 - p.Sb[n] / np.pi, 0.0))
+    body.rod(np.zeros(3), np.array([0.0, 0.0, -p.l[n]]), BAR_RADIUS, RHO_CARBON, inner)
+    return body
+
+
+def _central(p: H4Params) -> _Body:
+    """The central bar: the rods C_1-C_2 and D-(C_1 + C_2)/2 and a ball at D (its frame's origin)."""
+    body = _Body()
+    body.rod(p.DC[:, 0], p.DC[:, 1], PLATE_RADIUS, RHO_ALUMINIUM)
+    body.rod(np.zeros(3), p.DC.mean(axis=1), PLATE_RADIUS, RHO_ALUMINIUM)
+    body.ball(np.zeros(3), 1.5 * PLATE_RADIUS)
+    return body
+
+
+def _lateral(p: H4Params, k: int, bij: np.ndarray) -> _Body:
+    """Lateral bar k: from C_k (its frame's origin) a rod to each of its legs' B_i, a rod B_i1-B_i2
+    and the ball joints."""
+    body = _Body()
+    for i in np.flatnonzero(LEG_LATERAL == k):
+        body.rod(np.zeros(3), p.DB[:, i] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
+        body.rod(bij[i, 0] - p.DC[:, k], bij[i, 1] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
+        for j in range(2):
+            body.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
+    return body
+
+
+@dataclasses.dataclass(frozen=True)
+class MassModel:
+    """The moving links of the robot :func:`to_urdf` writes for some :class:`H4Params`, as that
+    URDF gives them: every joint's origin (in its parent link's frame; every frame has the world's
+    axes at the neutral configuration) and axis, and each link's (mass, centre of mass, inertia
+    about it) in its frame. Legs i (4): actuator origin P_i, axis u_i, the forearm. Bars n (8):
+    the universal joint at A_ij (in the forearm's frame) about u_i then a_i = forearm direction,
+    the cross, the bar, the bar's end (0, 0, -l). The central bar (its frame at D), lateral bars k
+    (2): origin C_k - D, axis z."""
+
+    actuator_origin: np.ndarray  # (4, 3)
+    actuator_axis: np.ndarray  # (4, 3)
+    forearm: tuple
+    anchor: np.ndarray  # (8, 3)
+    u1_axis: np.ndarray  # (8, 3)
+    u2_axis: np.ndarray  # (8, 3)
+    cross: tuple
+    bar: tuple
+    bar_end: np.ndarray  # (8, 3)
+    central: tuple
+    lateral_origin: np.ndarray  # (2, 3)
+    lateral: tuple
+
+
+def mass_model(params: H4Params) -> MassModel:
+    """The :class:`MassModel` of the URDF :func:`to_urdf` writes for ``params`` (without writing
+    it: the design sweep's natural frequencies take it per design, :mod:`h4pin.stiffness.frequencies`)."""
+    p = params
+    a, u = p.forearm_dirs.T, p.U.T
+    signs = np.tile([1.0, -1.0], 4)
+    legs = np.repeat(np.arange(4), 2)
+    bij = p.plate_ball_centres()
+    cross = _cross(p).inertial()
+    return MassModel(actuator_origin=p.P.T.copy(), actuator_axis=u.copy(),
+                     forearm=tuple(_forearm(p, i).inertial() for i in range(4)),
+                     anchor=p.r[legs, None] * a[legs] + (signs * p.half_width[legs])[:, None] * u[legs],
+                     u1_axis=u[legs], u2_axis=a[legs], cross=(cross,) * 8,
+                     bar=tuple(_bar(p, n).inertial() for n in range(8)),
+                     bar_end=np.stack([np.zeros(8), np.zeros(8), -p.l], axis=1), central=_central(p).inertial(),
+                     lateral_origin=p.DC.T.copy(), lateral=tuple(_lateral(p, k, bij).inertial() for k in range(2)))
+
+
 def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None) -> str:
     """URDF text of the H4 described by ``params`` (see the module docstring for its layout).
 
@@ -207,7 +304,6 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
     a = p.forearm_dirs.T
     u = p.U.T
     signs = (1.0, -1.0)
-    bar_inner = np.sqrt(np.maximum(BAR_RADIUS**2 - p.Sb / np.pi, 0.0))
     parts: list[str] = []
 
     base = _Body()
@@ -217,16 +313,10 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
     for i in range(4):
         n = leg_names(i + 1)
         h, r = p.half_width[i], p.r[i]
-        forearm_radius = (4.0 * p.I[i] / np.pi) ** 0.25  # solid round section with second moment I
         parts.append(_frame(n["P"], "base_link", p.P[:, i]))
-        forearm = _Body()
-        forearm.rod(np.zeros(3), r * a[i], forearm_radius, RHO_ALUMINIUM)
-        forearm.rod(r * a[i] - h * u[i], r * a[i] + h * u[i], forearm_radius * 0.6, RHO_ALUMINIUM)
-        for s in signs:
-            forearm.ball(r * a[i] + s * h * u[i], p.ball_radius)
         spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
                   f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"/>')
-        parts.append(forearm.xml(n["forearm"], "forearm", spring))
+        parts.append(_forearm(p, i).xml(n["forearm"], "forearm", spring))
         actuator = f'<h4_actuator kc="{_num(p.kc[i])}"/>'
         if elements is not None:
             actuator = (f'<h4_actuator kc="{_num(p.kc[i])}" shaft_tilt="{_num(elements.shaft_tilt[i])}"/>\n    '
@@ -240,36 +330,23 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
             nb = 2 * i + j
             anchor = r * a[i] + s * h * u[i]
             parts.append(_frame(b["A"], n["forearm"], anchor))
-            cross = _Body()
-            cross.ball(np.zeros(3), p.ball_radius * 0.5, CROSS_MASS)
-            parts.append(cross.xml(b["cross"], "joint"))
+            parts.append(_cross(p).xml(b["cross"], "joint"))
             parts.append(_joint(b["u1"], "revolute", n["forearm"], b["cross"], anchor, u[i], (-np.pi, np.pi)))
-            bar = _Body()
-            bar.rod(np.zeros(3), np.array([0.0, 0.0, -p.l[nb]]), BAR_RADIUS, RHO_CARBON, bar_inner[nb])
             bar_data = f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'
             if elements is not None:
                 bar_data += f'\n    <h4_ball radial="{_num(elements.ball_radial[nb])}"/>'
-            parts.append(bar.xml(b["bar"], "bar", bar_data))
+            parts.append(_bar(p, nb).xml(b["bar"], "bar", bar_data))
             parts.append(_joint(b["u2"], "revolute", b["cross"], b["bar"], np.zeros(3), a[i], (-np.pi, np.pi)))
             parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l[nb]])))
 
-    central = _Body()
-    central.rod(p.DC[:, 0], p.DC[:, 1], PLATE_RADIUS, RHO_ALUMINIUM)
-    central.rod(np.zeros(3), p.DC.mean(axis=1), PLATE_RADIUS, RHO_ALUMINIUM)
-    central.ball(np.zeros(3), 1.5 * PLATE_RADIUS)
-    parts.append(central.xml("central_bar", "plate", _plate_bar(elements, "central", range(2))))
+    parts.append(_central(p).xml("central_bar", "plate", _plate_bar(elements, "central", range(2))))
     parts.append(_joint("plate", "floating", "base_link", "central_bar", np.zeros(3)))
     parts.append(_frame("D", "central_bar", np.zeros(3)))
     bij = p.plate_ball_centres()
     for k in range(2):
         n = lateral_names(k + 1)
-        lateral = _Body()
-        for i in np.flatnonzero(LEG_LATERAL == k):
-            lateral.rod(np.zeros(3), p.DB[:, i] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
-            lateral.rod(bij[i, 0] - p.DC[:, k], bij[i, 1] - p.DC[:, k], PLATE_RADIUS, RHO_ALUMINIUM)
-            for j in range(2):
-                lateral.ball(bij[i, j] - p.DC[:, k], p.ball_radius)
-        parts.append(lateral.xml(n["link"], "plate", _plate_bar(elements, "lateral", np.flatnonzero(LEG_LATERAL == k))))
+        parts.append(_lateral(p, k, bij).xml(n["link"], "plate",
+                                             _plate_bar(elements, "lateral", np.flatnonzero(LEG_LATERAL == k))))
         joint_data = "" if elements is None else (
             f'<h4_revolute radial="{_num(elements.revolute_radial[k])}" axial="{_num(elements.revolute_axial[k])}" '
             f'tilt="{_num(elements.revolute_tilt[k])}"/>')

@@ -104,29 +104,42 @@ class Payload:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Modes:
-    """The undamped modes of the elastic H4 at a pose (:func:`modes`), ascending frequency.
+    """The undamped modes of the elastic H4 at a pose (:func:`h4pin.modes`), ascending frequency.
 
     Attributes:
         frequencies: (m,) Hz, ascending; m is the number of massive directions (the admissible
             motions less the massless ones, condensed).
+        pose: (4,) the pose [x, y, z, theta] (m, rad).
+        payload: the payload, or None.
+        massless: how many admissible directions carried no mass and were condensed.
         shapes_tp: (m, 8) each mode's plate motion dtp = [dD (m), dOmega (rad), domega_1,
             domega_2 (rad)] (world axes at D, as :func:`h4pin.compliance`), mass-normalised as
             ``shapes_q``.
         shapes_q: (m, nv) each mode's motion of the elastic model's velocity coordinates,
             mass-normalised: ``shapes_q[i] @ M @ shapes_q[i] = 1`` (M the joint-space inertia
             with the payload); sign: the largest entry of ``shapes_tp`` (rotations times 0.1 m)
-            is positive.
-        pose: (4,) the pose [x, y, z, theta] (m, rad).
-        payload: the payload, or None.
-        massless: how many admissible directions carried no mass and were condensed.
+            is positive. Both shapes come from this module's Pinocchio route, computed on first
+            access when the compiled twin gave the frequencies.
     """
 
     frequencies: np.ndarray
-    shapes_tp: np.ndarray
-    shapes_q: np.ndarray
     pose: np.ndarray
     payload: Payload | None
     massless: int
+    shapes: Any = dataclasses.field(default=None, repr=False)  # (shapes_tp, shapes_q), or a callable giving them
+
+    def _shapes(self) -> tuple[np.ndarray, np.ndarray]:
+        if callable(self.shapes):
+            object.__setattr__(self, "shapes", self.shapes())
+        return self.shapes
+
+    @property
+    def shapes_tp(self) -> np.ndarray:
+        return self._shapes()[0]
+
+    @property
+    def shapes_q(self) -> np.ndarray:
+        return self._shapes()[1]
 
 
 _MASS_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -250,7 +263,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     freq = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
     for a in (freq, shapes_tp, shapes_q, x):
         a.setflags(write=False)
-    return Modes(freq, shapes_tp, shapes_q, x, payload, int(np.count_nonzero(~heavy)))
+    return Modes(freq, x, payload, int(np.count_nonzero(~heavy)), (shapes_tp, shapes_q))
 
 
 __all__ = ["MASSLESS_TOL", "Modes", "Payload", "mass_model", "modes"]

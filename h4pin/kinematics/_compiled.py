@@ -138,6 +138,14 @@ def pack_configuration(P, u, A0, C0, b, v, e1, e2, p0, lat_sign, X0R, X0t, D0, l
 
 
 @njit(cache=True, nogil=True)
+def universal_packed(q, D, R, omega, F, I):  # noqa: E741  # pragma: no cover - compiled
+    """:func:`universal_angles` with the constants of :func:`pack_configuration`."""
+    return universal_angles(q, D, R, omega, F[0:12].reshape(4, 3), F[12:24].reshape(4, 3), F[24:48].reshape(8, 3),
+                            I[0:8], F[48:54].reshape(2, 3), F[54:78].reshape(8, 3), F[78:84].reshape(2, 3),
+                            F[84:108].reshape(8, 3), F[108:132].reshape(8, 3), F[132:156].reshape(8, 3))
+
+
+@njit(cache=True, nogil=True)
 def configuration_packed(q_out, q, D, R, omega, F, I):  # noqa: E741  # pragma: no cover - compiled
     """:func:`configuration` with the constants of :func:`pack_configuration`."""
     return configuration(q_out, q, D, R, omega, F[0:12].reshape(4, 3), F[12:24].reshape(4, 3),

@@ -38,7 +38,7 @@ from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
 from h4pin.extras import require
 from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
-from h4pin.stiffness import kernel
+from h4pin.stiffness import frequencies, kernel, pipeline
 from h4pin.studies import _derived
 
 #: The design variables, in order: name -> (unit, meaning).
@@ -67,6 +67,11 @@ class Task:
         axes = [np.linspace(c - h, c + h, n) if n > 1 else np.array([c])
                 for c, h, n in zip(self.centre, self.half, self.counts, strict=True)]
         return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 4)
+
+    def corners(self) -> np.ndarray:
+        """(17, 4) the box's centre and its 16 corners."""
+        signs = np.array(np.meshgrid(*([[-1.0, 1.0]] * 4), indexing="ij")).reshape(4, -1).T
+        return np.concatenate([[self.centre], np.asarray(self.centre) + signs * np.asarray(self.half)])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,6 +108,9 @@ class Spec:
     #: The compliant elements every design carries (:class:`h4pin.Elements` fields, SI; none by
     #: default: eq. 30 alone), in the compiled pipeline with each design's own beam lengths.
     elements: dict = dataclasses.field(default_factory=dict)
+    #: Also the lowest first natural frequency over the task box's centre and its 16 corners (Hz;
+    #: the elastic robot with the URDF's link inertias, :mod:`h4pin.stiffness.frequencies`).
+    frequency: bool = False
 
     def to_json(self) -> str:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
@@ -217,7 +225,9 @@ def _kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.
 
 def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
     """Results of some designs (rows of :func:`designs`): ``valid``, ``reach_all``, ``worst``
-    (m/N), ``volume`` (m^3), ``task_ok`` (count of task poses with status 0).
+    (m/N), ``volume`` (m^3), ``task_ok`` (count of task poses with status 0) and, with
+    ``spec.frequency``, ``first_frequency`` (Hz, the lowest over the task box's centre and
+    corners that the design reaches).
 
     Per design: one kernel call over the task poses and the volume grid, reduced in compiled
     code (:func:`h4pin.studies._derived.design_reduce`); the kernels of all the rows are packed
@@ -230,9 +240,15 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
     poses = np.ascontiguousarray(np.concatenate([task, grid]))
     n = len(rows)
     out = {"valid": np.zeros(n, bool), "reach_all": np.zeros(n, bool), "worst": np.full(n, np.nan),
-           "volume": np.full(n, np.nan), "task_ok": np.zeros(n, np.int32)}
+           "volume": np.full(n, np.nan), "task_ok": np.zeros(n, np.int32), "first_frequency": np.full(n, np.nan)}
     buf = kernel._empty(len(poses), False, False)
     n_task = len(task)
+    if spec.frequency:
+        corners = kernel._readonly(np.ascontiguousarray(spec.task.corners()))
+        f_buf = kernel._empty(len(corners), False, False)
+        inter = np.empty((len(corners), pipeline.NX))
+        freq, counts = np.empty((len(corners), 1)), np.empty((len(corners), 2), dtype=np.int64)
+        work = frequencies._work(frequencies._NY, frequencies._NS)
     for d, kern in enumerate(_kernels(rows, spec.element_set())):
         if kern is None:
             continue
@@ -243,6 +259,13 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
         out["reach_all"][d] = n_ok == n_task
         out["worst"][d] = worst
         out["volume"][d] = n_grid * spec.volume.cell
+        if spec.frequency:
+            MP, CF, CI = frequencies.pack_masses_params(params_of(rows[d]))
+            kernel._run(kern, corners, pipeline.CONSISTENT, f_buf, False, False, inter)
+            frequencies.frequencies_run(corners, 0, len(corners), f_buf.q, f_buf.status, inter, kern.packed,
+                                        kern.elements, MP, CF, CI, freq, counts, work)
+            ok = f_buf.status == 0
+            out["first_frequency"][d] = float(np.min(freq[ok, 0])) if ok.any() else np.nan
     return out
 
 
@@ -253,7 +276,7 @@ def _chunk_task(spec_json: str, c: int, rows: np.ndarray, threads: int | None) -
 
 
 _RESULTS = {"valid": ("bool", False), "reach_all": ("bool", False), "worst": ("float64", np.nan),
-            "volume": ("float64", np.nan), "task_ok": ("int32", 0)}
+            "volume": ("float64", np.nan), "task_ok": ("int32", 0), "first_frequency": ("float64", np.nan)}
 
 
 def _open_store(path: Path, spec: Spec):
@@ -285,7 +308,8 @@ def _open_store(path: Path, spec: Spec):
         create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
         group.attrs["h4pin"] = "sweep"
         group.attrs["variables"] = list(VARIABLES)
-        group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3"}
+        group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3",
+                                "first_frequency": "Hz"}
         group.attrs["spec"] = spec.to_json()
         make_readable(tmp / "store")
         os.replace(tmp / "store", path)  # atomic: the store appears whole, spec included
@@ -410,7 +434,9 @@ def load(path: str | Path) -> dict[str, np.ndarray]:
     if not path.exists():
         raise FileNotFoundError(f"no sweep at {path}")
     group = zarr.open_group(str(path), mode="r")
-    out: dict[str, Any] = {name: group[name][:] for name in ("designs", *_RESULTS, "done")}
+    out: dict[str, Any] = {name: group[name][:] if name in group else np.full(group["designs"].shape[0], fill)
+                           for name, fill in (("designs", None), *((n, f) for n, (_, f) in _RESULTS.items()),
+                                              ("done", None))}
     out["spec"] = Spec.from_json(group.attrs["spec"])
     return out
 

@@ -1,0 +1,955 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Natural frequencies of the elastic H4 at many poses, compiled: the twin of the Pinocchio route
+(:func:`h4pin.elastic.modes.modes`), under the same assumptions.
+
+The elastic H4 of :func:`h4pin.elastic.elastic_model`: every compliance (eq. 30's four families and
+each element that is on) a spring, the actuators locked, the link inertias of the robot's URDF
+(the forearm turning with its actuator's elastic rotation), an optional rigid payload on the
+central bar, small undamped vibrations about a rigid pose, massless motions condensed
+statically.
+
+**The flexibility form.** Call s the springs (compliance c_s), and y the motion of every body with
+mass per unit spring deformation. The structure with locked actuators is statically determinate
+(one spring per admissible motion), so the springs' deformations are coordinates: the stiffness is
+``diag(1 / c_s)`` and the mass ``B^T M B`` (B the body twists per unit deformation, M the bodies'
+spatial inertias). The eigenvalues mu of ``H = C^1/2 B^T M B C^1/2`` are ``1 / omega^2`` of the
+modes; the massless motions are its zero eigenvalues (the static condensation of the Pinocchio
+route). A spring's effect on the plate is its load per unit Gamma_ext (reciprocity), which the
+compiled pipeline already computes (:mod:`h4pin.stiffness.pipeline`: ``Y a_s``, the columns of
+M1^-1 M2 M3, the torsion vectors); its effect on its own body is a unit rotation or a unit twist
+at its site. The bodies' twists follow from the plate's, the forearms' and the universal joints'
+kinematics (a 3 x 3 solve per bar for its two universal-joint rates and its length rate). Per
+pose: the pipeline's one call, then :func:`_pose_frequencies` (H of 16 x 16 without elements,
+Householder tridiagonalisation and implicit QL). Robots whose parallelograms are exact, as the
+pipeline; :func:`h4pin.modes` takes the Pinocchio route for the others.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import weakref
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numba import njit
+
+from h4pin import _jit, verdicts
+from h4pin.description.elements import (
+    FORM_BEAM_BENDING,
+    FORM_BEAM_TORSION,
+    FORM_COUPLE,
+    FORM_COUPLE_AXIAL,
+    FORM_COUPLE_NORMAL,
+    FORM_FORCE,
+    FORM_FORCE_AXIAL,
+    FORM_FORCE_NORMAL,
+    SITE_ARM,
+    SITE_BAR,
+    SITE_JOINT,
+    SITE_MOUNT,
+    SITE_TIP,
+)
+from h4pin.errors import ParameterError
+from h4pin.kinematics import _compiled
+from h4pin.kinematics import pinocchio as kin
+from h4pin.stiffness import pipeline
+from h4pin.stiffness.packed import _CBEND, _CCTRL, _CTENS, _CTORS, _P, EL_HEADER, EL_ROW
+from h4pin.stiffness.pipeline import _A, _B, _EA, _GC, _LW, _TV, X_F, X_S, X_Y
+
+#: Relative eigenvalue of H (to its largest) at or under which a direction is massless: 16 eps.
+#: The massless directions' eigenvalues are round-off (at most 6.6e-16 of the largest over 80 poses
+#: of every variant with the 11 element kinds, 88 springs); the massive ones reach down to 1.5e-14
+#: (the symmetric variant near its singular centre with every element on: a 0.1 Hz mode beside a
+#: 1e5 Hz one). The Pinocchio route decides on the modal mass alone (its own 1e-12).
+MASSLESS_TOL = 16 * 2.220446049250313e-16
+
+# Layout of the packed mass model (one float64 vector a robot, :func:`pack_masses`): per body its
+# inertia as [mass, lever (3), inertia about the centre of mass (9)] in its joint's frame.
+_INERTIA = 13
+_LEG = 15 + _INERTIA  # R_a (9), t_a (3), axis (3) of the actuator joint; the forearm's inertia
+_BAR = 2 * (15 + _INERTIA)  # R, t, axis of the universal joint's first revolute, the cross; the same, the bar
+_PLATE = 15 + _INERTIA  # X0R (9), X0t (3), D0 (3) of the central bar; its inertia
+_LAT = 16 + _INERTIA  # R (9), t (3), axis (3), sign (1) of lateral revolute k; the lateral bar
+_O_LEG, _O_BAR = 0, 4 * _LEG
+_O_PLATE = _O_BAR + 8 * _BAR
+_O_LAT = _O_PLATE + _PLATE
+_O_PAY = _O_LAT + 2 * _LAT  # the payload's spatial inertia (6 x 6) in frame D
+_SIZE = _O_PAY + 36
+
+
+def _axis(model: pin.Model, j: int) -> np.ndarray:
+    """The unit axis of revolute joint j in its own frame."""
+    name = model.joints[j].shortname()
+    if name.startswith("JointModelR") and name[-1] in "XYZ" and len(name) == len("JointModelRX"):
+        return np.eye(3)["XYZ".index(name[-1])]
+    return np.asarray(model.joints[j].extract().axis, dtype=float)
+
+
+def _inertia(inertia: pin.Inertia, on: bool) -> np.ndarray:
+    if not on:
+        return np.zeros(_INERTIA)
+    return np.concatenate([[inertia.mass], inertia.lever, np.ravel(inertia.inertia)])
+
+
+def _placement(model: pin.Model, j: int) -> np.ndarray:
+    p = model.jointPlacements[j]
+    return np.concatenate([np.ravel(p.rotation), p.translation, _axis(model, j) if j else np.zeros(3)])
+
+
+_PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_EYE = np.eye(3)
+
+
+def _pack(records: dict[str, Any], payload: Any) -> np.ndarray:
+    """The mass model vector of :func:`_pose_frequencies` from per-body records: for each joint
+    its placement in its parent's frame (R, t) and axis, for each link [mass, lever, inertia]."""
+    out = np.zeros(_SIZE)
+    for i in range(4):
+        R, t, axis = records["actuator"][i]
+        out[_O_LEG + _LEG * i:_O_LEG + _LEG * (i + 1)] = np.concatenate([np.ravel(R), t, axis, records["forearm"][i]])
+    for n in range(8):
+        (R1, t1, a1), (R2, t2, a2) = records["universal"][n]
+        out[_O_BAR + _BAR * n:_O_BAR + _BAR * (n + 1)] = np.concatenate(
+            [np.ravel(R1), t1, a1, records["cross"][n], np.ravel(R2), t2, a2, records["bar"][n]])
+    X0R, X0t, D0 = records["plate"]
+    out[_O_PLATE:_O_PLATE + _PLATE] = np.concatenate([np.ravel(X0R), X0t, D0, records["central"]])
+    for k in range(2):
+        R, t, axis, sign = records["lateral_joint"][k]
+        out[_O_LAT + _LAT * k:_O_LAT + _LAT * (k + 1)] = np.concatenate([np.ravel(R), t, axis, [sign],
+                                                                         records["lateral"][k]])
+    if payload is not None:
+        out[_O_PAY:_O_PAY + 36] = np.ravel(payload.spatial())
+    out.setflags(write=False)
+    return out
+
+
+def pack_masses(h4, payload: Any = None, link_inertias: bool = True) -> np.ndarray:
+    """The mass model of :func:`_pose_frequencies` (read-only, cached per robot): each moving body's
+    joint placement, axis and inertia from the robot's Pinocchio model (as its URDF gives them),
+    and the payload's spatial inertia in frame D (:class:`h4pin.Payload`; zero without).
+    ``link_inertias=False``: only the payload has mass."""
+    key = (bool(link_inertias), None if payload is None else id(payload))
+    packs = _PACKS.setdefault(h4, {})
+    if key in packs:
+        return packs[key]
+    m, ix = h4.model, h4.index
+
+    def joint(j: int) -> tuple:
+        p = m.jointPlacements[j]
+        return p.rotation, p.translation, _axis(m, j)
+
+    for j in ix.jid_act:
+        if m.parents[j] != 0:
+            raise ParameterError(f"actuator joint {m.names[j]!r} must hang from the world")
+    bars = [(m.parents[cm.joint1_id], cm.joint1_id) for cm in h4.constraint_models]
+    for n, (j1, _) in enumerate(bars):
+        if m.parents[j1] != ix.jid_act[n // 2]:
+            raise ParameterError(f"bar {n // 2 + 1}{n % 2 + 1}: its universal joint must hang from its actuator")
+    records = {"actuator": [joint(j) for j in ix.jid_act],
+               "forearm": [_inertia(m.inertias[j], link_inertias) for j in ix.jid_act],
+               "universal": [(joint(j1), joint(j2)) for j1, j2 in bars],
+               "cross": [_inertia(m.inertias[j1], link_inertias) for j1, _ in bars],
+               "bar": [_inertia(m.inertias[j2], link_inertias) for _, j2 in bars],
+               "plate": (ix.X0R, ix.X0t, ix.D0),
+               "central": _inertia(m.inertias[m.parents[ix.jid_lat[0]]], link_inertias),
+               "lateral_joint": [(*joint(j), ix.lat_sign[k]) for k, j in enumerate(ix.jid_lat)],
+               "lateral": [_inertia(m.inertias[j], link_inertias) for j in ix.jid_lat]}
+    packs[key] = _pack(records, payload)
+    return packs[key]
+
+
+def _inertial(mci: tuple) -> np.ndarray:
+    """[mass, centre of mass (3), inertia about it (9)] of a (mass, com, inertia) triple."""
+    return np.concatenate([[mci[0]], mci[1], np.ravel(mci[2])])
+
+
+def pack_masses_params(params: Any, payload: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mass model (:func:`pack_masses`) and the configuration constants (as
+    :func:`h4pin.kinematics.pinocchio._configuration_pack`) of the robot
+    :func:`h4pin.description.urdf.to_urdf` writes for an :class:`h4pin.H4Params`, without writing
+    or loading it (:func:`h4pin.description.urdf.mass_model`): the design sweep's frequencies.
+    Equal to those of ``h4pin.load(params)`` (``tests/test_frequencies.py``)."""
+    from h4pin.description.geometry import geometry_from_params
+    from h4pin.description.urdf import mass_model
+
+    mm = mass_model(params)
+    zero = np.zeros(3)
+    records = {"actuator": [(_EYE, mm.actuator_origin[i], mm.actuator_axis[i]) for i in range(4)],
+               "forearm": [_inertial(f) for f in mm.forearm],
+               "universal": [((_EYE, mm.anchor[n], mm.u1_axis[n]), (_EYE, zero, mm.u2_axis[n])) for n in range(8)],
+               "cross": [_inertial(c) for c in mm.cross], "bar": [_inertial(b) for b in mm.bar],
+               "plate": (_EYE, zero, zero), "central": _inertial(mm.central),
+               "lateral_joint": [(_EYE, mm.lateral_origin[k], np.array([0.0, 0.0, 1.0]), 1.0) for k in range(2)],
+               "lateral": [_inertial(c) for c in mm.lateral]}
+    g = geometry_from_params(params)
+    CF, CI = _compiled.pack_configuration(g.P, g.u, g.A0, g.C0, g.b, g.v, mm.u1_axis, mm.u2_axis, mm.bar_end,
+                                          np.ones(2), _EYE, zero, zero, g.lat, np.zeros(4, dtype=np.int64),
+                                          np.zeros((8, 2), dtype=np.int64), 0, np.zeros(2, dtype=np.int64))
+    return _pack(records, payload), CF, CI
+
+
+# ----------------------------------------------------------------------------------------------
+# Compiled: small dense algebra
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mm(A, B, C):
+    """C = A B (3 x 3, C apart from A and B): no allocation, no BLAS call."""
+    for a in range(3):
+        for b in range(3):
+            C[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mv(A, v, out):
+    """out = A v (3 x 3 times 3)."""
+    x, y, z = v[0], v[1], v[2]
+    for a in range(3):
+        out[a] = A[a, 0] * x + A[a, 1] * y + A[a, 2] * z
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rotm(a, angle, C):
+    """C = the rotation of ``angle`` about the unit axis a (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    x, y, z = a[0], a[1], a[2]
+    C[0, 0], C[0, 1], C[0, 2] = c + x * x * t, x * y * t - z * s, x * z * t + y * s
+    C[1, 0], C[1, 1], C[1, 2] = y * x * t + z * s, c + y * y * t, y * z * t - x * s
+    C[2, 0], C[2, 1], C[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
+
+
+@njit(cache=True, nogil=True)
+def _spatial(R, o, inertia, out):
+    """The 6 x 6 spatial inertia [linear; angular] at the world point o, world axes, of a body
+    whose frame is (R, o) and whose inertia is [mass, lever (3), I about the centre of mass (9)]
+    in that frame (Pinocchio's ``Inertia.matrix()`` turned to the world)."""
+    m = inertia[0]
+    cx = R[0, 0] * inertia[1] + R[0, 1] * inertia[2] + R[0, 2] * inertia[3]
+    cy = R[1, 0] * inertia[1] + R[1, 1] * inertia[2] + R[1, 2] * inertia[3]
+    cz = R[2, 0] * inertia[1] + R[2, 1] * inertia[2] + R[2, 2] * inertia[3]
+    out[:, :] = 0.0
+    out[0, 0] = out[1, 1] = out[2, 2] = m
+    out[0, 4], out[0, 5], out[1, 3], out[1, 5], out[2, 3], out[2, 4] = m * cz, -m * cy, -m * cz, m * cx, m * cy, -m * cx
+    out[4, 0], out[5, 0], out[3, 1], out[5, 1], out[3, 2], out[4, 2] = m * cz, -m * cy, -m * cz, m * cx, m * cy, -m * cx
+    for a in range(3):  # R I R^T
+        for b in range(3):
+            t = 0.0
+            for k in range(3):
+                for l in range(3):
+                    t += R[a, k] * inertia[4 + 3 * k + l] * R[b, l]
+            out[3 + a, 3 + b] = t
+    out[3, 3] += m * (cy * cy + cz * cz)  # - m [c]x [c]x
+    out[4, 4] += m * (cx * cx + cz * cz)
+    out[5, 5] += m * (cx * cx + cy * cy)
+    out[3, 4] -= m * cx * cy
+    out[4, 3] -= m * cx * cy
+    out[3, 5] -= m * cx * cz
+    out[5, 3] -= m * cx * cz
+    out[4, 5] -= m * cy * cz
+    out[5, 4] -= m * cy * cz
+
+
+@njit(cache=True, nogil=True)
+def _tridiagonal(H, n, d, e):
+    """Householder reduction of the symmetric n x n leading block of H (overwritten) to a
+    tridiagonal matrix: diagonal d, sub-diagonal e[1:n] (EISPACK tred1)."""
+    for i in range(n - 1, 0, -1):
+        scale = 0.0
+        for k in range(i):
+            scale += abs(H[i, k])
+        if i == 1 or scale == 0.0:
+            e[i] = H[i, i - 1]
+            continue
+        h = 0.0
+        for k in range(i):
+            H[i, k] /= scale
+            h += H[i, k] * H[i, k]
+        f = H[i, i - 1]
+        g = -math.sqrt(h) if f >= 0.0 else math.sqrt(h)
+        e[i] = scale * g
+        h -= f * g
+        H[i, i - 1] = f - g
+        f = 0.0
+        for j in range(i):
+            g = 0.0
+            for k in range(j + 1):
+                g += H[j, k] * H[i, k]
+            for k in range(j + 1, i):
+                g += H[k, j] * H[i, k]
+            e[j] = g / h
+            f += e[j] * H[i, j]
+        hh = f / (h + h)
+        for j in range(i):
+            f = H[i, j]
+            g = e[j] - hh * f
+            e[j] = g
+            for k in range(j + 1):
+                H[j, k] -= f * e[k] + g * H[i, k]
+    for i in range(n):
+        d[i] = H[i, i]
+    e[0] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _ql(d, e, n):
+    """All eigenvalues (into d) of the tridiagonal (d, e[1:n]) by the implicit QL method with
+    Wilkinson shifts (EISPACK tql1; ``sqrt(f^2 + g^2)`` where tql1 has ``hypot``, which guards
+    against overflow at three times the cost: the entries here are compliances times masses)."""
+    for i in range(1, n):
+        e[i - 1] = e[i]
+    e[n - 1] = 0.0
+    for m0 in range(n):
+        it = 0
+        while True:
+            m = m0
+            while m < n - 1:
+                dd = abs(d[m]) + abs(d[m + 1])
+                if abs(e[m]) <= 2.220446049250313e-16 * dd:
+                    break
+                m += 1
+            if m == m0:
+                break
+            it += 1
+            if it > 60:
+                break
+            g = (d[m0 + 1] - d[m0]) / (2.0 * e[m0])
+            r = math.sqrt(g * g + 1.0)
+            g = d[m] - d[m0] + e[m0] / (g + (r if g >= 0.0 else -r))
+            s, c, p = 1.0, 1.0, 0.0
+            i = m - 1
+            while i >= m0:
+                f = s * e[i]
+                b = c * e[i]
+                r = math.sqrt(f * f + g * g)
+                e[i + 1] = r
+                if r == 0.0:
+                    d[i + 1] -= p
+                    e[m] = 0.0
+                    break
+                s = f / r
+                c = g / r
+                g = d[i + 1] - p
+                r = (d[i] - g) * s + 2.0 * c * b
+                p = s * r
+                d[i + 1] = g + p
+                g = c * r - b
+                i -= 1
+            if r == 0.0 and i >= m0:
+                continue
+            d[m0] -= p
+            e[m0] = g
+            e[m] = 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cr(ax, ay, az, bx, by, bz):
+    """(a x b) as a tuple (no array: nothing to allocate)."""
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inv3(a, b, c, d, e, f, g, h, k, out):
+    """out = [[a, b, c], [d, e, f], [g, h, k]]^-1 (adjugate over determinant)."""
+    A, B, C = e * k - f * h, f * g - d * k, d * h - e * g
+    det = a * A + b * B + c * C
+    i = 1.0 / det
+    out[0, 0], out[0, 1], out[0, 2] = A * i, (c * h - b * k) * i, (b * f - c * e) * i
+    out[1, 0], out[1, 1], out[1, 2] = B * i, (a * k - c * g) * i, (c * d - a * f) * i
+    out[2, 0], out[2, 1], out[2, 2] = C * i, (b * g - a * h) * i, (a * e - b * d) * i
+
+
+@njit(cache=True, nogil=True)
+def _normals(e):
+    """Two unit vectors n1, n2 normal to the unit e, with n1 x n2 = e."""
+    k = 0
+    if abs(e[1]) < abs(e[k]):
+        k = 1
+    if abs(e[2]) < abs(e[k]):
+        k = 2
+    n1 = np.array(_cr(e[0], e[1], e[2], 1.0 if k == 0 else 0.0, 1.0 if k == 1 else 0.0, 1.0 if k == 2 else 0.0))
+    n1 /= math.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
+    return n1, np.array(_cr(e[0], e[1], e[2], n1[0], n1[1], n1[2]))
+
+
+@njit(cache=True, nogil=True)
+def _site_springs(form, c, length, e, cols, u):
+    """The rank-one parts (c_t, u_t) of an element's compliance C = sum c_t u_t u_t^T in its form
+    (u_t (6,) a twist [translation; rotation] at the site's point, dual to its wrench [force;
+    couple]) into cols (compliances) and u (rows); returns how many. A beam's bending in each
+    plane normal to its axis e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2`` (the cantilever
+    of :func:`h4pin.stiffness.elements.beam_compliance`)."""
+    n1, n2 = _normals(e)
+    rot = form == FORM_COUPLE or form == FORM_COUPLE_NORMAL or form == FORM_COUPLE_AXIAL
+    off = 3 if rot else 0
+    if form == FORM_FORCE or form == FORM_COUPLE:
+        for a in range(3):
+            u[a, :] = 0.0
+            u[a, off + a] = 1.0
+            cols[a] = c
+        return 3
+    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
+        for a in range(2):
+            u[a, :] = 0.0
+            u[a, off:off + 3] = n1 if a == 0 else n2
+            cols[a] = c
+        return 2
+    if form == FORM_FORCE_AXIAL or form == FORM_COUPLE_AXIAL:
+        u[0, :] = 0.0
+        u[0, off:off + 3] = e
+        cols[0] = c
+        return 1
+    if form == FORM_BEAM_TORSION:
+        u[0, :] = 0.0
+        u[0, 3:] = e
+        cols[0] = c * length
+        return 1
+    k = 1.5 / length  # FORM_BEAM_BENDING
+    u[0, :3], u[0, 3:] = n1, k * n2
+    u[1, :3], u[1, 3:] = 0.0, n2
+    u[2, :3], u[2, 3:] = n2, -k * n1
+    u[3, :3], u[3, 3:] = 0.0, n1
+    cols[0] = cols[2] = c * length ** 3 / 3.0
+    cols[1] = cols[3] = c * length / 4.0
+    return 4
+
+
+@njit(cache=True, nogil=True)
+def _y_layout(EG, sy):
+    """The y coordinates (rows of M_y): dtp (8), then per leg its forearm's elastic rotation phi_i
+    and tip torsion tau_i (8), then a 6-D twist per site that carries an element other than a bar
+    (rows sy[type, index]: type 0 joint k, 1 arm i, 2 mount i, 3 tip i; -1 none). Returns ny and
+    the number of spring columns ns."""
+    sy[:, :] = -1
+    ny = 16
+    ns = 16
+    for row in range(int(EG[0])):
+        base = EL_HEADER + EL_ROW * row
+        site, form, count, off = int(EG[base]), int(EG[base + 1]), int(EG[base + 3]), int(EG[base + 4])
+        if site == SITE_BAR:
+            continue
+        per = 3 if (form == FORM_FORCE or form == FORM_COUPLE) else (
+            2 if (form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL) else (4 if form == FORM_BEAM_BENDING else 1))
+        st = 0 if site == SITE_JOINT else (1 if site == SITE_ARM else (2 if site == SITE_MOUNT else 3))
+        for s in range(count):
+            if EG[off + 2 * s] == 0.0:
+                continue
+            ns += per
+            if sy[st, s] < 0:
+                sy[st, s] = ny
+                ny += 6
+    return ny, ns
+
+
+@njit(cache=True, nogil=True)
+def _add_body(My, M6, J, cols, nc):
+    """My[cols, cols] += J^T M6 J (J (6, nc), the body's twist [v at its origin; omega] per unit
+    y coordinate cols[c])."""
+    mv = np.empty(6)
+    for c in range(nc):
+        for r in range(6):
+            t = 0.0
+            for k in range(6):
+                t += M6[r, k] * J[k, c]
+            mv[r] = t
+        for c2 in range(c, nc):
+            t = 0.0
+            for r in range(6):
+                t += J[r, c2] * mv[r]
+            My[cols[c], cols[c2]] += t
+            if c2 != c:
+                My[cols[c2], cols[c]] += t
+
+
+@njit(cache=True, nogil=True)
+def _put(J, c, v, w):
+    J[0, c], J[1, c], J[2, c] = v[0], v[1], v[2]
+    J[3, c], J[4, c], J[5, c] = w[0], w[1], w[2]
+
+
+@njit(cache=True, nogil=True)
+def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # pragma: no cover - compiled
+    """The natural frequencies (Hz, ascending, NaN past the massive count) into freq of one pose
+    x (4,), from the pipeline's q (4,) and intermediates Xrow (:data:`h4pin.stiffness.pipeline.NX`),
+    the packed geometry G and element table EG, the mass model MP (:func:`pack_masses`), the
+    configuration constants CF, CI (:func:`h4pin.kinematics.pinocchio._configuration_pack`) and
+    the work arrays W (:func:`_work`). Returns the number of massive directions.
+
+    The bodies' twists are linear in y (:func:`_y_layout`): J_b (6 x its y columns) per body,
+    ``M_y = sum J_b^T M6_b J_b``; the springs' columns R (y per unit deformation, times
+    sqrt(c)); ``H = R^T M_y R``. Its eigenvalues mu (Householder, then QL: all of them cost less
+    than four by bisection, whose Sturm counts divide at every step): the massive ones (above
+    :data:`MASSLESS_TOL` of the largest) give ``1 / (2 pi sqrt(mu))``, as many as freq holds."""
+    O, M6, axes, Sinv, sy, My, R, MR, H, J, Jc, cols, comp, us, Xs, T3 = W
+    Y = Xrow[X_Y:X_Y + 64].reshape(8, 8)
+    S = Xrow[X_S:X_S + pipeline._ROWS].reshape(pipeline._ROWS, 1)
+    D = x[:3]
+    th = x[3]
+    ct, st = math.cos(th), math.sin(th)
+    Rz, Rf, R1p, R1, R2p, Rq, Rp, Rlp = T3[0], T3[1], T3[2], T3[3], T3[4], T3[5], T3[6], T3[7]
+    Rz[0, 0], Rz[0, 1], Rz[0, 2], Rz[1, 0], Rz[1, 1], Rz[1, 2] = ct, -st, 0.0, st, ct, 0.0
+    Rz[2, 0], Rz[2, 1], Rz[2, 2] = 0.0, 0.0, 1.0
+    alpha, beta = _compiled.universal_packed(q, D, Rz, np.array([-th, -th]), CF, CI)
+    A = Xrow[X_S + _A:X_S + _A + 24].reshape(8, 3)
+    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
+    v3 = np.empty(3)
+    # axes rows: 0-3 u_i, 4-7 A_i, 8-11 e_i (forearm axis), 12-19 a1_n, 20-27 a2_n, 28-29 lateral
+    # axes, 30-45 the sites' points (joint k, arm i, mount i, tip i)
+    for i in range(4):
+        b0 = MP[_LEG * i:_LEG * (i + 1)]
+        Ra = b0[0:9].reshape(3, 3)
+        _rotm(b0[12:15], q[i], Rq)
+        _mm(Ra, Rq, Rf)
+        _mv(Ra, b0[12:15], axes[i])
+        O[i] = b0[9:12]
+        _spatial(Rf, O[i], b0[15:15 + _INERTIA], M6[i])
+        for a in range(3):
+            axes[4 + i, a] = 0.5 * (A[2 * i, a] + A[2 * i + 1, a])
+            axes[8 + i, a] = axes[4 + i, a] - G[_P + 3 * i + a]
+        axes[8 + i] /= math.sqrt(axes[8 + i, 0] ** 2 + axes[8 + i, 1] ** 2 + axes[8 + i, 2] ** 2)
+        for j in range(2):
+            n = 2 * i + j
+            b1 = MP[_O_BAR + _BAR * n:_O_BAR + _BAR * n + 15 + _INERTIA]
+            b2 = MP[_O_BAR + _BAR * n + 15 + _INERTIA:_O_BAR + _BAR * (n + 1)]
+            _mm(Rf, b1[0:9].reshape(3, 3), R1p)
+            _mv(Rf, b1[9:12], v3)
+            for a in range(3):
+                O[4 + n, a] = O[i, a] + v3[a]
+            _mv(R1p, b1[12:15], axes[12 + n])
+            _rotm(b1[12:15], alpha[n], Rq)
+            _mm(R1p, Rq, R1)
+            _mm(R1, b2[0:9].reshape(3, 3), R2p)
+            _mv(R1, b2[9:12], v3)
+            for a in range(3):
+                O[12 + n, a] = O[4 + n, a] + v3[a]
+            _mv(R2p, b2[12:15], axes[20 + n])
+            _spatial(R1, O[4 + n], b1[15:15 + _INERTIA], M6[4 + n])
+            _rotm(b2[12:15], beta[n], Rq)
+            _mm(R2p, Rq, R1p)  # R1p, spent, takes the bar's rotation
+            _spatial(R1p, O[12 + n], b2[15:15 + _INERTIA], M6[12 + n])
+            # the bar's 3 x 3 solve: [a1 x (B - o1), a2 x (B - o2), w] [rates] = v_B - v(o1) - w_t x (B - o1)
+            c1 = _cr(axes[12 + n, 0], axes[12 + n, 1], axes[12 + n, 2], B[n, 0] - O[4 + n, 0], B[n, 1] - O[4 + n, 1],
+                     B[n, 2] - O[4 + n, 2])
+            c2 = _cr(axes[20 + n, 0], axes[20 + n, 1], axes[20 + n, 2], B[n, 0] - O[12 + n, 0],
+                     B[n, 1] - O[12 + n, 1], B[n, 2] - O[12 + n, 2])
+            wx, wy, wz = B[n, 0] - A[n, 0], B[n, 1] - A[n, 1], B[n, 2] - A[n, 2]
+            _inv3(c1[0], c2[0], wx, c1[1], c2[1], wy, c1[2], c2[2], wz, Sinv[n])
+    bp = MP[_O_PLATE:_O_PLATE + _PLATE]
+    _mm(Rz, bp[0:9].reshape(3, 3), Rp)
+    for a in range(3):
+        v3[a] = bp[9 + a] - bp[12 + a]
+    _mv(Rz, v3.copy(), O[20])
+    for a in range(3):
+        O[20, a] += D[a]
+    _spatial(Rp, O[20], bp[15:15 + _INERTIA], M6[20])
+    O[23] = D  # the payload: its spatial inertia in frame D (central-bar axes), at D, turned to the world
+    pay = MP[_O_PAY:_O_PAY + 36].reshape(6, 6)
+    for a in range(6):
+        for b in range(6):
+            t = 0.0
+            for k in range(3):
+                for l in range(3):
+                    t += Rz[a % 3, k] * pay[3 * (a // 3) + k, 3 * (b // 3) + l] * Rz[b % 3, l]
+            M6[23, a, b] = t
+    for k in range(2):
+        bl = MP[_O_LAT + _LAT * k:_O_LAT + _LAT * (k + 1)]
+        _mm(Rp, bl[0:9].reshape(3, 3), Rlp)
+        _mv(Rp, bl[9:12], v3)
+        for a in range(3):
+            O[21 + k, a] = O[20, a] + v3[a]
+        _mv(Rlp, bl[12:15], axes[28 + k])
+        _rotm(bl[12:15], -bl[15] * th, Rq)
+        _mm(Rlp, Rq, R1)
+        _spatial(R1, O[21 + k], bl[16:16 + _INERTIA], M6[21 + k])
+    # --- the springs: their columns of R (y per unit deformation, times sqrt(c)) ----------------
+    ny, ns = _y_layout(EG, sy)
+    R[:ny, :ns] = 0.0
+    ball = np.zeros(8)
+    for row in range(int(EG[0])):
+        base = EL_HEADER + EL_ROW * row
+        if int(EG[base]) == SITE_BAR:
+            off = int(EG[base + 4])
+            for n in range(8):
+                ball[n] += EG[off + 2 * n]
+    for i in range(4):  # the actuators (forearm rotation phi_i) and the torsions (tau_i)
+        sa = math.sqrt(G[_CCTRL + i] + G[_CBEND + i])
+        so = math.sqrt(G[_CTORS + i])
+        for a in range(8):
+            R[a, 2 * i] = sa * Xrow[X_F + _GC + 4 * a + i]
+            R[a, 2 * i + 1] = -so * Xrow[X_F + _TV + 4 * a + i]
+        R[8 + 2 * i, 2 * i] = sa
+        R[9 + 2 * i, 2 * i + 1] = so
+    for n in range(8):  # the bars (tension and ball joints in series)
+        sb = math.sqrt(G[_CTENS + n] + ball[n])
+        for a in range(8):
+            R[a, 8 + n] = sb * S[_LW + n, 0] * Y[a, n]
+    t = 16
+    for row in range(int(EG[0])):
+        base = EL_HEADER + EL_ROW * row
+        site, form, axis = int(EG[base]), int(EG[base + 1]), int(EG[base + 2])
+        count, off = int(EG[base + 3]), int(EG[base + 4])
+        if site == SITE_BAR:
+            continue
+        stype = 0 if site == SITE_JOINT else (1 if site == SITE_ARM else (2 if site == SITE_MOUNT else 3))
+        # the bars' closures give the plate's motion: M1 dtp = w . (dA - dB) over the bars that load
+        # the site: + for a twist of the forearm side (mount, tip), - of the plate side (joint, arm)
+        sign = 1.0 if (site == SITE_MOUNT or site == SITE_TIP) else -1.0
+        for s in range(count):
+            c, length = EG[off + 2 * s], EG[off + 2 * s + 1]
+            if c == 0.0:
+                continue
+            pipeline._element_axis(G, axis, s, 1, S, Xs)
+            e = Xs[_EA:_EA + 3, 0].copy()
+            pipeline._site_point(G, site, s, 0, 1, S, Xs)
+            o = Xs[_EA:_EA + 3, 0].copy()
+            k = _site_springs(form, c, length, e, comp, us)
+            y0 = sy[stype, s]
+            for p in range(k):
+                sc = math.sqrt(comp[p])
+                for d in range(6):
+                    R[y0 + d, t] = sc * us[p, d]
+                for m in range(8):
+                    if not pipeline._site_bars(G, site, s, m):
+                        continue
+                    pt = A[m] if (site == SITE_MOUNT or site == SITE_TIP) else B[m]
+                    fx, fy, fz = B[m, 0] - A[m, 0], B[m, 1] - A[m, 1], B[m, 2] - A[m, 2]
+                    mx, my, mz = _cr(pt[0] - o[0], pt[1] - o[1], pt[2] - o[2], fx, fy, fz)
+                    g = sign * sc * (fx * us[p, 0] + fy * us[p, 1] + fz * us[p, 2] + mx * us[p, 3] + my * us[p, 4]
+                                     + mz * us[p, 5])
+                    for a in range(8):
+                        R[a, t] += Y[a, m] * g
+                t += 1
+            axes[30 + 4 * stype + s] = o  # the site's point, for the bodies' twists below
+    # --- M_y: the bodies' Jacobians in y ------------------------------------------------------
+    My[:ny, :ny] = 0.0
+    for b in (20, 23):  # the central bar (at its origin) and the payload (at D): dtp's first six
+        for c in range(6):
+            v = np.zeros(3)
+            w = np.zeros(3)
+            if c < 3:
+                v[c] = 1.0
+            else:
+                w[c - 3] = 1.0
+                v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[b, 0] - D[0], O[b, 1] - D[1], O[b, 2] - D[2])
+            _put(J, c, v, w)
+            cols[c] = c
+        _add_body(My, M6[b], J, cols, 6)
+    for k in range(2):  # lateral bar k: dtp's first six, its revolute, its joint site
+        b = 21 + k
+        nc = 0
+        for c in range(7):
+            v = np.zeros(3)
+            w = np.zeros(3)
+            if c < 3:
+                v[c] = 1.0
+            elif c < 6:
+                w[c - 3] = 1.0
+                v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[b, 0] - D[0], O[b, 1] - D[1], O[b, 2] - D[2])
+            else:
+                w[:] = axes[28 + k]
+            _put(J, nc, v, w)
+            cols[nc] = c if c < 6 else 6 + k
+            nc += 1
+        nc = _site_columns(J, cols, nc, sy[0, k], O[b], axes[30 + k])
+        _add_body(My, M6[b], J, cols, nc)
+    for i in range(4):
+        k = int(G[pipeline._LAT + 2 * i])
+        P = G[_P + 3 * i:_P + 3 * i + 3]
+        # the forearm: phi_i and the mount site
+        w = axes[i].copy()
+        v = np.zeros(3)
+        v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[i, 0] - P[0], O[i, 1] - P[1], O[i, 2] - P[2])
+        _put(J, 0, v, w)
+        cols[0] = 8 + 2 * i
+        nc = _site_columns(J, cols, 1, sy[2, i], O[i], axes[38 + i])
+        _add_body(My, M6[i], J, cols, nc)
+        for j in range(2):
+            _bar_columns(i, 2 * i + j, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols)
+    # --- H = R^T M_y R and its eigenvalues ------------------------------------------------------
+    for a in range(ny):
+        for c in range(ns):
+            t2 = 0.0
+            for b in range(ny):
+                t2 += My[a, b] * R[b, c]
+            MR[a, c] = t2
+    for c in range(ns):
+        for c2 in range(c, ns):
+            t2 = 0.0
+            for a in range(ny):
+                t2 += R[a, c] * MR[a, c2]
+            H[c, c2] = t2
+            H[c2, c] = t2
+    d = np.empty(ns)
+    e = np.empty(ns)
+    _tridiagonal(H, ns, d, e)
+    _ql(d, e, ns)
+    mu = np.sort(d)[::-1]
+    massive = 0
+    for a in range(ns):
+        if mu[a] > MASSLESS_TOL * mu[0] and mu[0] > 0.0:
+            massive += 1
+    for a in range(freq.shape[0]):
+        freq[a] = 1.0 / (2.0 * math.pi * math.sqrt(mu[a])) if a < massive else np.nan
+    return massive
+
+
+@njit(cache=True, nogil=True)
+def _site_columns(J, cols, nc, y0, origin, o):
+    """The six columns of a site's twist [translation at o; rotation] (y rows y0..y0 + 5, none if
+    y0 < 0) for a body moved by it, twist at its ``origin``: returns the new column count."""
+    if y0 < 0:
+        return nc
+    for d in range(6):
+        v = np.zeros(3)
+        w = np.zeros(3)
+        if d < 3:
+            v[d] = 1.0
+        else:
+            w[d - 3] = 1.0
+            v[0], v[1], v[2] = _cr(w[0], w[1], w[2], origin[0] - o[0], origin[1] - o[1], origin[2] - o[2])
+        _put(J, nc, v, w)
+        cols[nc] = y0 + d
+        nc += 1
+    return nc
+
+
+@njit(cache=True, nogil=True)
+def _bar_columns(i, n, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols):  # noqa: C901
+    """The cross and the bar of bar n (leg i, lateral bar k): their twists per unit y column (the
+    tip's and the bar end's motions, then the universal joint's two rates from the bar's 3 x 3
+    solve), added to M_y."""
+    ax, ay, az = axes[4 + i, 0], axes[4 + i, 1], axes[4 + i, 2]  # A_i
+    bx, by, bz = B[n, 0], B[n, 1], B[n, 2]
+    o1x, o1y, o1z = O[4 + n, 0], O[4 + n, 1], O[4 + n, 2]
+    nc = 0
+    for c in range(9 + 24):  # 0..5 dtp, 6 omega_k, 7 phi, 8 tau, then the mount, tip, joint and arm sites
+        vbx = vby = vbz = 0.0  # the bar end B's velocity
+        wtx = wty = wtz = 0.0  # the tip's rotation and its velocity at A_i
+        vax = vay = vaz = 0.0
+        if c < 3:
+            yc = c
+            vbx, vby, vbz = (1.0 if c == 0 else 0.0), (1.0 if c == 1 else 0.0), (1.0 if c == 2 else 0.0)
+        elif c < 6:
+            yc = c
+            vbx, vby, vbz = _cr(1.0 if c == 3 else 0.0, 1.0 if c == 4 else 0.0, 1.0 if c == 5 else 0.0,
+                                bx - D[0], by - D[1], bz - D[2])
+        elif c == 6:
+            yc = 6 + k
+            vbx, vby, vbz = _cr(axes[28 + k, 0], axes[28 + k, 1], axes[28 + k, 2], bx - O[21 + k, 0],
+                                by - O[21 + k, 1], bz - O[21 + k, 2])
+        elif c == 7:
+            yc = 8 + 2 * i
+            wtx, wty, wtz = axes[i, 0], axes[i, 1], axes[i, 2]
+            vax, vay, vaz = _cr(wtx, wty, wtz, ax - O[i, 0], ay - O[i, 1], az - O[i, 2])
+        elif c == 8:
+            yc = 9 + 2 * i
+            wtx, wty, wtz = axes[8 + i, 0], axes[8 + i, 1], axes[8 + i, 2]
+        else:
+            g, d = (c - 9) // 6, (c - 9) % 6  # 0 mount, 1 tip (the tip's twist); 2 joint, 3 arm (B's)
+            y0 = sy[2, i] if g == 0 else (sy[3, i] if g == 1 else (sy[0, k] if g == 2 else sy[1, i]))
+            if y0 < 0:
+                continue
+            yc = y0 + d
+            r = 38 + i if g == 0 else (42 + i if g == 1 else (30 + k if g == 2 else 34 + i))
+            tvx, tvy, tvz = (1.0 if d == 0 else 0.0), (1.0 if d == 1 else 0.0), (1.0 if d == 2 else 0.0)
+            twx, twy, twz = (1.0 if d == 3 else 0.0), (1.0 if d == 4 else 0.0), (1.0 if d == 5 else 0.0)
+            px, py, pz = (ax, ay, az) if g < 2 else (bx, by, bz)
+            ex, ey, ez = _cr(twx, twy, twz, px - axes[r, 0], py - axes[r, 1], pz - axes[r, 2])
+            if g < 2:
+                wtx, wty, wtz = twx, twy, twz
+                vax, vay, vaz = tvx + ex, tvy + ey, tvz + ez
+            else:
+                vbx, vby, vbz = tvx + ex, tvy + ey, tvz + ez
+        ux, uy, uz = _cr(wtx, wty, wtz, o1x - ax, o1y - ay, o1z - az)
+        v1x, v1y, v1z = vax + ux, vay + uy, vaz + uz
+        rx, ry, rz = _cr(wtx, wty, wtz, bx - o1x, by - o1y, bz - o1z)
+        hx, hy, hz = vbx - v1x - rx, vby - v1y - ry, vbz - v1z - rz
+        r0 = Sinv[n, 0, 0] * hx + Sinv[n, 0, 1] * hy + Sinv[n, 0, 2] * hz
+        r1 = Sinv[n, 1, 0] * hx + Sinv[n, 1, 1] * hy + Sinv[n, 1, 2] * hz
+        w1x, w1y, w1z = wtx + r0 * axes[12 + n, 0], wty + r0 * axes[12 + n, 1], wtz + r0 * axes[12 + n, 2]
+        Jc[0, nc], Jc[1, nc], Jc[2, nc], Jc[3, nc], Jc[4, nc], Jc[5, nc] = v1x, v1y, v1z, w1x, w1y, w1z
+        sx, sy2, sz = _cr(w1x, w1y, w1z, O[12 + n, 0] - o1x, O[12 + n, 1] - o1y, O[12 + n, 2] - o1z)
+        J[0, nc], J[1, nc], J[2, nc] = v1x + sx, v1y + sy2, v1z + sz
+        J[3, nc] = w1x + r1 * axes[20 + n, 0]
+        J[4, nc] = w1y + r1 * axes[20 + n, 1]
+        J[5, nc] = w1z + r1 * axes[20 + n, 2]
+        cols[nc] = yc
+        nc += 1
+    _add_body(My, M6[4 + n], Jc, cols, nc)
+    _add_body(My, M6[12 + n], J, cols, nc)
+
+
+def _work(ny: int, ns: int) -> tuple:
+    """The work arrays of :func:`_pose_frequencies` for up to ny y rows and ns springs."""
+    return (np.zeros((24, 3)), np.zeros((24, 6, 6)), np.zeros((46, 3)), np.zeros((8, 3, 3)),
+            np.full((4, 4), -1, dtype=np.int64), np.zeros((ny, ny)), np.zeros((ny, ns)), np.zeros((ny, ns)),
+            np.zeros((ns, ns)), np.zeros((6, 34)), np.zeros((6, 34)), np.zeros(34, dtype=np.int64), np.zeros(4),
+            np.zeros((4, 6)),
+            np.zeros((pipeline._XROWS, 1)), np.zeros((8, 3, 3)))
+
+
+@njit(cache=True, nogil=True)
+def frequencies_run(poses, start, stop, q, status, X, G, EG, MP, CF, CI, freq, count, W):  # pragma: no cover
+    """:func:`_pose_frequencies` for poses start .. stop - 1 whose status is 0 (else NaN, count 0):
+    count[p] = [massive directions, springs (the admissible directions)]."""
+    for p in range(start, stop):
+        if status[p] != 0:
+            freq[p] = np.nan
+            count[p, 0] = 0
+            count[p, 1] = 0
+            continue
+        count[p, 0] = _pose_frequencies(poses[p], q[p], X[p], G, EG, MP, CF, CI, freq[p], W)
+        count[p, 1] = _y_layout(EG, W[4])[1]
+
+
+#: Whether :func:`frequencies_run` is compiled (:mod:`h4pin._jit`); until then :func:`modes` takes
+#: the Pinocchio route.
+FREQUENCIES = _jit.Gate("natural frequencies", frequencies_run)
+#: Largest y and spring counts of a robot with every element on (:func:`_y_layout`).
+_NY, _NS = 16 + 6 * 14, 16 + 10 * 2 + 5 * 4 + 8 * 4 + 2 * 4
+
+
+def _robot(robot: Any):
+    """The :class:`h4pin.H4` of ``robot`` (an H4 or its :class:`~h4pin.elastic.h4.ElasticH4`)."""
+    from h4pin.elastic.h4 import ElasticH4
+    from h4pin.robot import H4
+
+    if isinstance(robot, ElasticH4):
+        return robot.robot
+    if isinstance(robot, H4):
+        return robot
+    raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {type(robot).__name__}")
+
+
+def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bool = True,
+                count: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled twin at poses (N, 4) of a robot whose parallelograms are exact, with its own
+    elements: (frequencies (N, m) Hz ascending, NaN past each pose's massive count and where the
+    status is not 0; the massive count (N,); the status (N,), :mod:`h4pin.verdicts`). ``count``:
+    how many frequencies to keep (default: all)."""
+    from h4pin.stiffness import kernel
+
+    el = None if h4.elements.off else h4.elements
+    kern = kernel.for_geometry(h4.geometry, el)
+    x = kernel._readonly(np.ascontiguousarray(poses, dtype=float).reshape(-1, 4))
+    n = len(x)
+    inter = np.empty((n, pipeline.NX))
+    if n == 1:  # the one-pose entry (no block of lanes)
+        _, q, cond, status, _ = kernel.one(kern, x[0], pipeline.CONSISTENT, inter=inter[0])
+        q, status = q[None], np.array([status], dtype=np.int8)
+    else:
+        res = kernel._run(kern, x, pipeline.CONSISTENT, kernel._empty(n, False, False), False, False, inter)
+        q, status = res.q, res.status
+    CF, CI = kin._configuration_pack(h4)
+    width = _NS if count is None else int(count)
+    freq = np.empty((n, width))
+    counts = np.empty((n, 2), dtype=np.int64)
+    frequencies_run(x, 0, n, q, status, inter, kern.packed, kern.elements, pack_masses(h4, payload, link_inertias),
+                    CF, CI, freq, counts, _work(_NY, _NS))
+    if count is None:
+        freq = freq[:, :max(int(counts[:, 0].max(initial=0)), 1)]
+    return freq, counts, status
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Frequencies:
+    """Natural frequencies at many poses (:func:`modes` with (N, 4) poses).
+
+    Attributes:
+        frequencies: (N, m) Hz, ascending per pose; NaN past a pose's massive count and where its
+            status is not 0.
+        massive: (N,) how many massive directions each pose has (its frequencies).
+        status: (N,) int8 verdicts (:mod:`h4pin.verdicts`; 0: computed).
+        poses: (N, 4) [x, y, z, theta] (m, rad).
+        payload: the payload, or None.
+    """
+
+    frequencies: np.ndarray
+    massive: np.ndarray
+    status: np.ndarray
+    poses: np.ndarray
+    payload: Any
+
+    @property
+    def first(self) -> np.ndarray:
+        """(N,) the lowest natural frequency of each pose (Hz; NaN where its status is not 0)."""
+        return self.frequencies[:, 0]
+
+
+METHODS = ("auto", "compiled", "pinocchio")
+
+
+def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "auto", link_inertias: bool = True,
+          data: Any = None):
+    """Natural frequencies (and mode shapes) of the elastic H4 at a pose or at many.
+
+    The elastic H4 of :func:`h4pin.elastic_model` (every compliance a spring, the robot's own
+    elements; actuators locked; the URDF's link inertias; an optional rigid payload on the
+    central bar; massless motions condensed): :mod:`h4pin.stiffness.frequencies` (compiled,
+    the module docstring) or :func:`h4pin.elastic.modes.modes` (Pinocchio's ``crba`` on the
+    elastic model), which agree to round-off (``tests/test_frequencies.py``).
+
+    Args:
+        robot: an :class:`h4pin.H4` or its :class:`h4pin.ElasticH4`.
+        pose: (4,) [x, y, z, theta] (m, rad), or (N, 4).
+        payload: an :class:`h4pin.Payload` on the central bar, or None.
+        method: ``"auto"`` (the compiled twin once compiled, for a robot whose parallelograms are
+            exact; else Pinocchio), ``"compiled"`` or ``"pinocchio"``.
+        link_inertias: the URDF's link inertias (True) or massless links (only the payload has mass).
+        data: a ``pin.Data`` of the elastic model for the Pinocchio route.
+
+    Returns:
+        One pose: :class:`h4pin.Modes` (its shapes computed by the Pinocchio route on first
+        access when the twin gave the frequencies). (N, 4): :class:`Frequencies` (refused poses
+        NaN, with their status).
+
+    Raises:
+        PoseError, UnreachablePoseError (and subclasses), UnrestrainedMotionError: one pose the
+        robot cannot take or that is singular (a batch gives NaN and the status instead).
+        ParameterError: a bad method, payload or robot.
+    """
+    from h4pin.elastic.modes import Modes, Payload
+    from h4pin.elastic.modes import modes as pinocchio_modes
+    from h4pin.kinematics.closed_form import as_poses
+    from h4pin.stiffness import kernel
+
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+    if payload is not None and not isinstance(payload, Payload):
+        raise ParameterError(f"payload must be an h4pin.Payload or None, got {type(payload).__name__}")
+    h4 = _robot(robot)
+    x = as_poses(pose).copy()
+    x.setflags(write=False)
+    compiled = h4.geometry.ideal and method != "pinocchio" and (
+        method == "compiled" or (FREQUENCIES.ready and kernel.ONE.ready and kernel.BATCH.ready))
+    if method == "compiled" and not h4.geometry.ideal:
+        raise ParameterError("the compiled twin takes robots whose parallelograms are exact; use method='pinocchio'")
+    if x.ndim == 1:
+        if compiled:
+            freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
+            if status[0] == verdicts.OK:
+                m = int(counts[0, 0])
+                f = freq[0, :m].copy()
+                f.setflags(write=False)
+                return Modes(f, x, payload, int(counts[0, 1]) - m, lambda: pinocchio_modes(
+                    robot, x, payload, link_inertias=link_inertias, data=data)._shapes())
+        return pinocchio_modes(robot, x, payload, link_inertias=link_inertias, data=data)  # its typed error
+    if compiled:
+        freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
+        return Frequencies(freq, counts[:, 0].copy(), status, x, payload)
+    from h4pin.stiffness.api import compliance
+
+    status = compliance(h4, x, "consistent", on_error="nan").status.astype(np.int8)
+    rows = [pinocchio_modes(robot, xk, payload, link_inertias=link_inertias, data=data).frequencies if s == 0
+            else np.zeros(0) for xk, s in zip(x, status, strict=True)]
+    width = max([len(r) for r in rows] + [1])
+    freq = np.full((len(x), width), np.nan)
+    for k, r in enumerate(rows):
+        freq[k, :len(r)] = r
+    return Frequencies(freq, np.array([len(r) for r in rows]), status, x, payload)
+
+
+__all__ = ["FREQUENCIES", "MASSLESS_TOL", "METHODS", "Frequencies", "frequencies", "frequencies_run", "modes",
+           "pack_masses"]
