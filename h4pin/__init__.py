@@ -33,7 +33,7 @@ from h4pin.errors import (  # noqa: E402
 from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
 from h4pin.robot import H4, load  # noqa: E402
 from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
-from h4pin.stiffness.frequencies import Frequencies, modes  # noqa: E402
+from h4pin.vibration import Frequencies, modes  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -254,9 +254,11 @@ def atlas(
     model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
     out: Path = typer.Option(Path("atlas.nc"), help="output file: .nc (NetCDF) or .zarr"),
     figures: Path | None = typer.Option(None, help="folder for the maps atlas_<quantity>.png"),
+    frequency: bool = typer.Option(False, "--frequency", help="also the first natural frequency (Hz)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
-    """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability."""
+    """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability
+    (and the first natural frequency)."""
     import numpy as np
 
     from h4pin.files import check_output
@@ -277,13 +279,17 @@ def atlas(
     h4 = load_robot(variant, urdf)
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
-    ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out)
+    ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out,
+                            frequency=frequency)
     ok = ds.status == 0  # lazy (dask) for a streamed .zarr atlas: reduced chunk by chunk
     n_ok = int(ok.sum())
     typer.echo(f"{n_ok} of {ok.size} poses reachable and regular")
     if n_ok:
         c = ds.compliance_max * 1e6
         typer.echo(f"worst-direction compliance {float(c.min()):.1f} to {float(c.max()):.1f} um/N")
+        if frequency:
+            f = ds.first_frequency
+            typer.echo(f"first natural frequency {float(f.min()):.1f} to {float(f.max()):.1f} Hz")
     typer.echo(f"wrote {out}")
     if figures is not None:
         for path in atlas_module.plot(ds, figures):
@@ -302,13 +308,16 @@ def sweep(
     threads: int | None = typer.Option(None, help="numba threads per task (default: all locally, 1 on Dask)"),
     pareto: Path | None = typer.Option(None, help="write the Pareto figure here (PNG)"),
     urdf_dir: Path | None = typer.Option(None, help="write the best designs here as URDF variants"),
+    frequency: bool = typer.Option(False, "--frequency",
+                                   help="also each design's first natural frequency (lowest over the task box)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
-    """Design sweep: which designs reach the task box, their worst compliance and workspace volume."""
+    """Design sweep: which designs reach the task box, their worst compliance and workspace volume
+    (and first natural frequency)."""
     from h4pin.files import check_output
     from h4pin.studies import sweep as sweep_module
 
-    spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model)
+    spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model, frequency=frequency)
     sweep_module.check_store(out, "--out")
     if pareto is not None:
         check_output(pareto, "--pareto", suffixes=(".png",))
@@ -323,7 +332,9 @@ def sweep(
     typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
                f"{res['reach_all'].sum()} reach the whole task box, {front.size} on the Pareto front")
     for d in front:
-        typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3")
+        hz = f", first frequency {res['first_frequency'][d]:.1f} Hz" if frequency else ""
+        typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3"
+                   f"{hz}")
     if pareto is not None:
         typer.echo(f"wrote {sweep_module.plot_pareto(res, pareto)}")
     if urdf_dir is not None:
@@ -389,14 +400,14 @@ def modes(
         check_output(map_png, "--map", suffixes=(".png",))
     import numpy as np
 
-    from h4pin.elastic import Payload, elastic_model
-    from h4pin.elastic import modes as natural_modes
+    from h4pin.elastic import Payload
     from h4pin.kinematics.closed_form import centre_pose
+    from h4pin.vibration import modes as natural_modes
 
     h4 = load_robot(variant, urdf)
     x = centre_pose(h4) if pose is None else np.array(pose, dtype=float)
     load_ = Payload(payload) if payload > 0 else None
-    res = natural_modes(elastic_model(h4), x, load_)
+    res = natural_modes(h4, x, load_)
     typer.echo(f"natural modes at x y z theta = {' '.join(f'{v:g}' for v in x)} (m, rad), payload {payload:g} kg")
     typer.echo(f"{'mode':>4}  {'Hz':>8}  plate motion (largest of dD mm, dOmega x 0.1 m)")
     for k in range(min(count, len(res.frequencies))):

@@ -3,7 +3,8 @@
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
 first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline's one-pose and
-batch entries and the atlas and sweep reductions. After it, every call starts compiled.
+batch entries, the natural frequencies and the atlas and sweep reductions. After it, every call
+starts compiled.
 h4pin starts this module by itself in the background the first time a call needs code that is
 not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
 ``pip install`` in a Dockerfile.
@@ -24,6 +25,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
+    from h4pin.vibration import modes
 
     state: dict[str, object] = {}
 
@@ -37,6 +39,7 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     return [("configuration (h4pin.load)", configuration),
             ("compiled pipeline, one pose", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("compiled pipeline, batch", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
+            ("natural frequencies", lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled")),
             ("atlas and sweep fields", _study_fields)]
 
 

@@ -1,24 +1,27 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""Speed of h4pin's compliance, printed as a table (nothing here is asserted by the tests).
+"""Speed of h4pin's compliance and natural frequencies, printed as a table (nothing here is
+asserted by the tests).
 
-Rows: the vectorised batch path (eq. 30 with the inverse geometry, model "paper"), the
-single-pose path through Pinocchio's Jacobians, a straightforward per-pose numpy implementation
-of eq. 30 (loops, np.cross, explicit inverses: what one writes first), and the two validation
-routes; then the compiled kernel (:mod:`h4pin.stiffness.kernel`) on 1 and 2 threads, one pose through it,
-its memory per pose, and optionally a 1e7-pose streaming run (``--big``), the Dask overhead per
-task (``--dask``) and a design sweep of 10 000 designs x 1 000 poses (``--sweep``). The naive
-implementation and the kernel are compared to h4pin's result, so the table is only printed if
-they agree.
+Rows: the numpy batch path (eq. 30 with the inverse geometry), the compiled pipeline
+(:mod:`h4pin.stiffness.pipeline`: batch on 1 and 2 threads, one pose, with terms, a robot with all
+11 element kinds), the Pinocchio route, a straightforward per-pose numpy implementation of eq. 30
+(loops, np.cross, explicit inverses: what one writes first), the two validation routes, the
+natural frequencies (the compiled twin and the Pinocchio route), an atlas with the first
+frequency; optionally a 1e7-pose streaming run (``--big``), the Dask overhead per task
+(``--dask``), a design sweep of 10 000 designs x 1 000 poses (``--sweep``) and the tolerance
+study (``--tolerance``). Each row beside the same row of the release before this one (measured on
+the same machine, :data:`PREVIOUS`). The naive implementation and the pipeline are compared to
+h4pin's reference, so the table is only printed if they agree.
 
     python scripts/bench.py [--batch 100000] [--repeat 3] [--big] [--dask] [--sweep]
-    python scripts/bench.py --cold   # first use after an install: fresh processes, empty numba cache
+    python scripts/bench.py --cold   # first use: the warm-up in a fresh process, empty numba cache
+                                     # (idle, then beside two busy processes): seconds and peak memory
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import platform
 import resource
@@ -33,11 +36,8 @@ from h4pin.checks import deformed, statics
 from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.description.params import LEG_LATERAL, H4Params
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import kernel
+from h4pin.stiffness import frequencies, kernel
 from h4pin.stiffness.api import compliance
-
-#: The vector kernel whatever the batch size (kernel.compliance_batch's arguments).
-vector_batch = functools.partial(kernel.compliance_batch, vector=True)
 
 
 def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
@@ -112,25 +112,29 @@ def best_of(repeat: int, fn) -> float:
     return min(times)
 
 
-#: The previous release's table (README before this release, this machine), us/pose, by row name.
+#: The previous release's rows (commit 7099350: the scalar kernel, the lane kernel, numpy element
+#: terms and the Pinocchio modes), measured on this machine (2-core AMD EPYC VM, load 0.7), us/pose.
 PREVIOUS = {
     "numpy batch (reference), 'paper', incl. inverse geometry": 13.3,
-    "h4pin.compliance(h4, poses): default batch path": 0.50,
-    "h4pin.compliance(h4, pose): default one-pose path": 7.24,
+    "h4pin.compliance(h4, poses): default batch path, 1 thread": 0.873,
+    "h4pin.compliance(h4, poses): default batch path, 2 threads": 0.464,
+    "h4pin.compliance(h4, pose): default one-pose path": 6.7,
     "h4pin.compliance(h4, pose, method='pinocchio')": 35.7,
-    "h4pin.compliance, robot with all 11 elements, one pose": 1220.0,
+    "h4pin.compliance, robot with all 11 elements, batch": 3451.0,
+    "h4pin.compliance, robot with all 11 elements, one pose": 3335.0,
     "atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)": 1.10,
     "naive per-pose numpy eq. 30 (loops, np.cross, inv)": 1927.0,
     "h4pin.compliance(h4, poses, terms=True): batch with terms": 0.88,
     "h4pin.compliance(h4, pose, terms=True): one pose with terms": 8.7,
     "h4pin.compliance(h4, poses) for a batch of 1 pose (per call)": 19.0,
     "h4pin.compliance(h4, poses) for a batch of 10 poses (per call)": 34.0,
-    "scalar kernel batch, 'paper', 1 thread, incl. IGM + verdict": 1.47,
-    "vector kernel batch, 'paper', 1 thread, incl. IGM + verdict": 0.943,
-    "vector kernel batch, 'consistent', 1 thread, incl. IGM + verdict": 0.947,
-    "vector kernel batch, 'paper', 2 threads, incl. IGM + verdict": 0.482,
-    "vector kernel batch, 'consistent', 2 threads, incl. IGM + verdict": 0.484,
+    "pipeline batch, 'paper', 1 thread, incl. IGM + verdict": 0.69,
+    "pipeline batch, 'paper', 2 threads, incl. IGM + verdict": 0.42,
     "kernel, one pose (Kernel call, incl. Python overhead)": 4.0,
+    "h4pin.modes(h4, pose): all frequencies, one pose": 2425.0,
+    "h4pin.modes(h4, poses): batch, all frequencies": 2425.0,
+    "h4pin.modes, robot with all 11 elements, batch": 9400.0,
+    "atlas with first frequency, 1e6 poses (per pose)": 2425.0,
 }
 #: Floating-point operations of one pose (inverse geometry, verdicts including the bar interference
 #: check, M1, its inverse and condition, eq. 30), counted from the source of the kernel of the
@@ -205,37 +209,67 @@ def peak_rss_mb() -> float:
 
 
 def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tuple[str, int], float], float]:
-    """Seconds per pose of the kernel batch per (model, threads), and of one pose."""
+    """Seconds per pose of the pipeline's batch per (model, threads) and into preallocated arrays
+    (1 and 2 threads alternating), and of one pose (a Kernel call)."""
     kern = kernel.prepare(h4.geometry)
-    kernel.compliance_batch(kern, poses[:10], vector=False)  # load (or compile) once
+    kernel.compliance_batch(kern, poses[:10])  # load (or compile) once
     times = {}
     for threads in (1, 2):
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         for model in ("paper", "consistent"):
-            run = lambda m=model: kernel.compliance_batch(kern, poses, m, vector=False)  # noqa: E731
+            run = lambda m=model: kernel.compliance_batch(kern, poses, m)  # noqa: E731
             times[model, threads] = best_of(repeat, run) / len(poses)
-    for threads in (1, 2):
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-        for model in ("paper", "consistent"):
-            run = lambda m=model: vector_batch(kern, poses, m)  # noqa: E731
-            run()
-            times["vector " + model, threads] = best_of(repeat, run) / len(poses)
-    out = vector_batch(kern, poses)
+    out = kernel.compliance_batch(kern, poses)
     best = {1: np.inf, 2: np.inf}
     for _ in range(repeat):  # into the same arrays (no page faults), 1 and 2 threads alternating
         for threads in (1, 2):
             numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             t0 = time.perf_counter()
-            vector_batch(kern, poses, "paper", out)
+            kernel.compliance_batch(kern, poses, "paper", out)
             best[threads] = min(best[threads], (time.perf_counter() - t0) / len(poses))
     for threads, t in best.items():
-        times["vector, into out=, paper", threads] = t
+        times["into out= paper", threads] = t
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     x = poses[0]
     kern(x)
     n_one = 20_000
     t_one = best_of(repeat, lambda: [kern(x) for _ in range(n_one)]) / n_one
     return times, t_one
+
+
+def modes_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> dict[str, float]:
+    """Seconds a pose of the natural frequencies: the compiled twin (one pose; a batch, on one
+    thread, all the frequencies and the first four) and the Pinocchio route it replaces (the
+    previous release's), bare and with the 11 element kinds."""
+    numba.set_num_threads(1)
+    with_el = h4.with_elements(ILLUSTRATIVE)
+    few = poses[:2000]
+    h4pin.modes(h4, few[:3])
+    h4pin.modes(with_el, few[:3])
+    out = {
+        "twin, one pose": best_of(repeat, lambda: [h4pin.modes(h4, x) for x in few[:500]]) / 500,
+        "twin, batch, all": best_of(repeat, lambda: h4pin.modes(h4, few)) / len(few),
+        "twin, batch, first four": best_of(repeat, lambda: frequencies.frequencies(h4, few, count=4)) / len(few),
+        "twin, batch, 11 elements": best_of(repeat, lambda: h4pin.modes(with_el, few[:500])) / 500,
+        "pinocchio, one pose": best_of(1, lambda: [h4pin.modes(h4, x, method="pinocchio") for x in few[:40]]) / 40,
+        "pinocchio, 11 elements": best_of(1, lambda: [h4pin.modes(with_el, x, method="pinocchio")
+                                                      for x in few[:20]]) / 20,
+    }
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return out
+
+
+def frequency_atlas_row(h4: h4pin.H4, n_side: int = 1000) -> float:
+    """Seconds a pose of an atlas with the first frequency: n_side^2 poses at the centre height
+    (1e6 by default), on numba's threads."""
+    from h4pin.studies import atlas
+
+    c = centre_pose(h4)
+    xs = np.linspace(-0.3, 0.3, n_side)
+    atlas.atlas(h4, xs[:8], xs[:8], [c[2]], progress=False, frequency=True)
+    t0 = time.perf_counter()
+    atlas.atlas(h4, xs, xs, [c[2]], progress=False, frequency=True)
+    return (time.perf_counter() - t0) / n_side**2
 
 
 def big_stream(h4: h4pin.H4, n: int, chunk: int) -> tuple[float, float, float]:
@@ -270,10 +304,16 @@ def main() -> None:
     parser.add_argument("--designs", type=int, default=10_000, help="designs in the sweep row")
     parser.add_argument("--cold", action="store_true",
                         help="only time first use: each row in a fresh process with an empty numba cache")
+    parser.add_argument("--pareto", type=int, default=0, metavar="DESIGNS",
+                        help="also time the frequency-workspace-compliance Pareto sweep of this many designs")
+    parser.add_argument("--all", action="store_true",
+                        help="every row of the release note in one run: the table, --pareto 100000 and --cold")
     args = parser.parse_args()
-    if args.cold:
+    if args.cold and not args.all:
         cold_table()
         return
+    if args.all:
+        args.pareto = args.pareto or 100_000
     h4 = h4pin.load("prototype")
     rng = np.random.default_rng(0)
     poses = centre_pose(h4) + rng.uniform(-1, 1, (args.batch, 4)) * [0.1, 0.1, 0.06, 0.4]
@@ -291,6 +331,11 @@ def main() -> None:
     t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
     t_kernel, t_one = kernel_rows(h4, poses, args.repeat)
+    t_default = {}
+    for threads in (1, 2):
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        t_default[threads] = best_of(args.repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     t_terms = best_of(args.repeat, lambda: compliance(h4, poses, "paper", terms=True)) / len(poses)
     x0 = few[0]
     t_small = {n: best_of(args.repeat, lambda n=n: [compliance(h4, few[:n]) for _ in range(200)]) / 200
@@ -299,9 +344,15 @@ def main() -> None:
                               for t in (False, True))
     t_single_terms = best_of(args.repeat, lambda: [compliance(h4, x0, "paper", terms=True) for _ in range(2000)]) / 2000
     with_el = h4.with_elements(ILLUSTRATIVE)
-    t_el_batch = best_of(args.repeat, lambda: compliance(with_el, few, "paper")) / n_single
+    numba.set_num_threads(1)
+    t_el_batch = best_of(args.repeat, lambda: compliance(with_el, poses, "paper")) / len(poses)
+    t_el_off = best_of(args.repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     t_el_single = best_of(args.repeat, lambda: [compliance(with_el, x, "paper") for x in few[:500]]) / 500
+    t_el_numpy = best_of(1, lambda: compliance(with_el, few[:100], "paper", method="closed_form")) / 100
     t_atlas = atlas_row(h4, args.repeat)
+    t_modes = modes_rows(h4, poses, args.repeat)
+    t_fatlas = frequency_atlas_row(h4, 1000 if args.batch >= 100_000 else 200)
 
     ours = compliance(h4, few[:50], "paper", method="closed_form").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])
@@ -312,80 +363,92 @@ def main() -> None:
     ref = compliance(h4, poses, "paper", method="closed_form").matrix
     agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
     if agree_k > 1e-12:
-        raise SystemExit(f"kernel and h4pin disagree: {agree_k:.1e} relative")
+        raise SystemExit(f"pipeline and h4pin disagree: {agree_k:.1e} relative")
     bytes_per_pose = sum(a.nbytes for a in fast if a is not None) / len(poses)
 
     per_pose = t_batch / len(poses)
     print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {len(poses)} batch poses, "
-          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, kernel vs h4pin: {agree_k:.1e} relative), "
+          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, pipeline vs h4pin: {agree_k:.1e} relative), "
           f"load average before: {os.getloadavg()[0]:.2f}\n")
     rows = [
         ("numpy batch (reference), 'paper', incl. inverse geometry", per_pose),
         ("numpy batch (reference), 'consistent', incl. inverse geometry", t_batch_c / len(poses)),
-        ("h4pin.compliance(h4, poses): default batch path", t_default),
+        ("h4pin.compliance(h4, poses): default batch path, 1 thread", t_default[1]),
+        ("h4pin.compliance(h4, poses): default batch path, 2 threads", t_default[2]),
         ("h4pin.compliance(h4, pose): default one-pose path", t_single),
         ("h4pin.compliance(h4, pose, method='pinocchio')", t_single_pin),
         ("h4pin.compliance, robot with all 11 elements, batch", t_el_batch),
         ("h4pin.compliance, robot with all 11 elements, one pose", t_el_single),
+        ("  the same, numpy path (statics route per pose, as before)", t_el_numpy),
         ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t_atlas),
         ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t_naive),
         ("validation: Newton-Euler statics route", t_statics),
         ("validation: finite-difference route (non-linear)", t_fd),
-    ]
-    rows += [
         ("h4pin.compliance(h4, poses, terms=True): batch with terms", t_terms),
         ("h4pin.compliance(h4, pose, terms=True): one pose with terms", t_single_terms),
         ("h4pin.compliance(h4, poses) for a batch of 1 pose (per call)", t_small[1]),
         ("h4pin.compliance(h4, poses) for a batch of 10 poses (per call)", t_small[10]),
     ]
     for (model, threads), t in t_kernel.items():
-        kind, _, name = model.rpartition(" ")
-        label = ("vector kernel batch into out=" if "out=" in kind else "vector kernel batch" if kind
-                 else "scalar kernel batch")
+        into = "into out= " in model
+        name = model.rpartition(" ")[2]
+        label = "pipeline batch into out=" if into else "pipeline batch"
         rows.append((f"{label}, '{name}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", t))
     rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t_one))
+    rows += [
+        ("h4pin.modes(h4, pose): all frequencies, one pose", t_modes["twin, one pose"]),
+        ("h4pin.modes(h4, poses): batch, all frequencies", t_modes["twin, batch, all"]),
+        ("  the same, the first four frequencies (frequencies(count=4))", t_modes["twin, batch, first four"]),
+        ("h4pin.modes, robot with all 11 elements, batch", t_modes["twin, batch, 11 elements"]),
+        ("  Pinocchio route (method='pinocchio', as before), one pose", t_modes["pinocchio, one pose"]),
+        ("  Pinocchio route, robot with all 11 elements", t_modes["pinocchio, 11 elements"]),
+        ("atlas with first frequency, 1e6 poses (per pose)", t_fatlas),
+    ]
     peak = peak_flops()
     dgemm = measured_dgemm()
     print(f"| {'path':<64} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} | {'vs batch':>8} "
-          f"| {'vs prev.':>8} | {'of peak':>7} |")
-    print(f"|{'-' * 66}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|{'-' * 10}|{'-' * 9}|")
+          f"| {'before':>9} | {'vs prev.':>8} | {'of peak':>7} |")
+    print(f"|{'-' * 66}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|{'-' * 11}|{'-' * 10}|{'-' * 9}|")
     for name, t in rows:
         prev = PREVIOUS.get(name)
         vs_prev = f"{prev / (t * 1e6):>7.2f}x" if prev else f"{'':>8}"
+        before = f"{prev:>9.2f}" if prev else f"{'':>9}"
         hw = ""
-        if "kernel batch" in name and peak:
+        if "pipeline batch" in name and peak:
             threads = int(name.split(" thread")[0].rsplit(" ", 1)[-1])
             hw = f"{KERNEL_FLOPS / t / (peak * threads):.1%}"
         print(f"| {name:<64} | {1 / t:>10.0f} | {t * 1e6:>9.2f} | {t_naive / t:>7.1f}x | {per_pose / t:>7.2f}x "
-              f"| {vs_prev} | {hw:>7} |")
-    print("\n'vs prev.': the same row in the previous release's table (README, same machine).")
+              f"| {before} | {vs_prev} | {hw:>7} |")
+    print("\n'before' (us/pose) and 'vs prev.': the same row in the previous release (commit 7099350: a scalar and "
+          "a lane kernel, element terms in numpy per pose, natural frequencies through Pinocchio), measured on this "
+          "machine; the Pinocchio and numpy-element rows above are those routes, still there, measured now.")
     if peak:
         print(f"'of peak': {KERNEL_FLOPS} nominal flops a pose x poses/s / the cores' double-precision peak "
               f"({peak / 1e9:.1f} GFLOP/s a core: 2 FMA pipes x the vector width x 2 x clock; {cpu_summary()}). "
               f"numpy's dgemm reaches {dgemm / 1e9:.1f} GFLOP/s on one core here ({dgemm / peak:.0%} of that peak).")
     floor = 5 * 64 * 8 + 4 * 8 + 8 + 1 + 4 * 8
-    print(f"kernel output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status); "
+    print(f"pipeline output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status); "
           f"h4pin.compliance peak memory a pose: {mem_default:.0f} B, {mem_terms:.0f} B with terms (the arrays a "
           f"result with terms holds: K and 4 terms 2560 B, q, condition, status, pose: {floor} B)")
 
     print("\ntargets:")
-    one_core = min(1 / t_kernel["vector paper", 1], 1 / t_kernel["vector consistent", 1])
-    two_cores = min(1 / t_kernel["vector paper", 2], 1 / t_kernel["vector consistent", 2])
+    one_core = min(1 / t_kernel["paper", 1], 1 / t_kernel["consistent", 1])
+    two_cores = min(1 / t_kernel["paper", 2], 1 / t_kernel["consistent", 2])
     checks = [  # (what, measured, target, unit, True: at least / False: at most)
-        ("vector batch, 1 core", one_core, 1_200_000, "poses/s", True),
-        ("vector batch, 2 cores / 1 core", two_cores / one_core, 1.9, "x", True),
+        ("default batch, 1 core", one_core, 1_200_000, "poses/s", True),
+        ("default batch, 2 cores / 1 core", two_cores / one_core, 1.9, "x", True),
         ("  the same into out= (no page faults)",
-         t_kernel["vector, into out=, paper", 1] / t_kernel["vector, into out=, paper", 2], 1.9, "x", True),
+         t_kernel["into out= paper", 1] / t_kernel["into out= paper", 2], 1.9, "x", True),
         ("one pose, h4pin.compliance", t_single * 1e6, 4.0, "us", False),
-        ("one pose via Pinocchio", t_single_pin * 1e6, 50.0, "us", False),
-        ("terms=True batch / default batch", t_terms / t_default, 1.3, "x", False),
-        ("terms=True batch, memory a pose", mem_terms, 2560, "B", False),
+        ("all 11 elements / elements off, batch", t_el_batch / t_el_off, 2.0, "x", False),
+        ("modes, first four frequencies, 1 core", t_modes["twin, batch, first four"] * 1e6, 20.0, "us", False),
+        ("terms=True batch / default batch", t_terms / t_default[2], 1.3, "x", False),
         ("default batch, memory a pose", mem_default, 600, "B", False),
     ]
     for name, got, want, unit, at_least in checks:
         ok = got >= want if at_least else got <= want
         verdict = "met" if ok else f"MISSED by {abs(got / want - 1):.0%}"
-        print(f"  {name:<36} {got:>12,.2f} {unit:<8} {'>=' if at_least else '<='} {want:>12,.2f}   {verdict}")
+        print(f"  {name:<38} {got:>12,.2f} {unit:<8} {'>=' if at_least else '<='} {want:>12,.2f}   {verdict}")
     print(f"  (numba threads available: {numba.config.NUMBA_NUM_THREADS}, threading layer: "
           f"{numba.threading_layer()})")
 
@@ -421,6 +484,37 @@ def main() -> None:
                           f"{over / k_task:.0%}")
     if args.tolerance:
         bench_tolerance()
+    if args.pareto:
+        pareto_row(args.pareto)
+    if args.all:
+        print()
+        cold_table()
+
+
+#: The previous release's frequency Pareto: the first frequency at the centre pose only, of at
+#: most 200 designs, through the Pinocchio route (its URDF, elastic model and data a design),
+#: 120 designs in 2.9 s on this machine.
+PREVIOUS_PARETO_MS = 2.9e3 / 120
+
+
+def pareto_row(n_designs: int) -> None:
+    """The sweep with frequencies (each design: the task box's compliance, its workspace volume
+    and its first frequency over the centre and 16 corners) on two Dask workers, then the front."""
+    import tempfile
+    from pathlib import Path
+
+    from h4pin.studies import frequency, sweep
+
+    spec = sweep.Spec(n_designs=n_designs, chunk=256, frequency=True)
+    t = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        res = sweep.run(Path(tmp) / "sweep.zarr", spec, workers=2, progress=False)
+    seconds = time.perf_counter() - t
+    front = frequency.frequency_pareto(res)
+    print(f"\nfrequency-workspace-compliance Pareto, {n_designs:,} designs on 2 Dask workers: {seconds:.0f} s, "
+          f"{seconds / n_designs * 1e3:.1f} ms a design (17 poses of frequency each; before: "
+          f"{PREVIOUS_PARETO_MS:.0f} ms a design for the centre pose alone, at most 200 designs), "
+          f"{int(res['reach_all'].sum()):,} reach the task box, {len(front['front'])} on the front")
 
 
 COLD_STEPS = {
@@ -428,7 +522,7 @@ COLD_STEPS = {
     "h4pin.load()": "h4 = h4pin.load()",
     "first single pose, compliance(h4, x)": "h4pin.compliance(h4, x)",
     "first batch of 1000 poses": "h4pin.compliance(h4, xs)",
-    "first pose on the Pinocchio path": "h4pin.compliance(h4, x, method='pinocchio')",
+    "first modes at one pose": "h4pin.modes(h4, x)",
 }
 COLD_SCRIPT = """
 import time, json
@@ -442,26 +536,62 @@ for name, code in {steps!r}.items():
         x = centre_pose(h4); xs = x + np.random.default_rng(0).uniform(-1, 1, (1000, 4)) * [0.05, 0.05, 0.03, 0.2]
 print(json.dumps(out))
 """
+#: The previous release's warm-up on this machine, idle: seconds and peak resident MB.
+PREVIOUS_WARMUP = (195.7, 2457.0)
 
 
-def cold_run(args: list[str], mode: str) -> tuple[float, str]:
-    """Wall time and stdout of a fresh process with an empty numba cache, ``H4PIN_WARMUP=mode``."""
+#: Runs ``-c CODE`` or ``-m MODULE ARGS`` and writes its peak resident memory (KB: the process
+#: and the children it waited for) to the file $H4PIN_BENCH_RSS at exit.
+_RSS_WRAPPER = """
+import atexit, os, resource, runpy, sys
+def _rss():
+    with open(os.environ['H4PIN_BENCH_RSS'], 'w') as f:
+        f.write(str(max(resource.getrusage(r).ru_maxrss for r in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))))
+atexit.register(_rss)
+args = sys.argv[1:]
+if args[0] == '-m':
+    sys.argv = args[1:]
+    runpy.run_module(args[1], run_name='__main__', alter_sys=True)
+else:
+    sys.argv = ['-c']
+    exec(compile(args[1], '<bench>', 'exec'), {'__name__': '__main__'})
+"""
+
+
+def cold_run(args: list[str], mode: str) -> tuple[float, str, float]:
+    """Wall time, stdout and peak resident memory (MB, that process alone and its children) of a
+    fresh process with an empty numba cache, ``H4PIN_WARMUP=mode``; ``args``: ``["-c", code]`` or
+    ``["-m", module, ...]``."""
     import os
     import subprocess
     import sys
     import tempfile
 
     with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, H4PIN_WARMUP=mode)
+        rss_file = os.path.join(cache, "rss")
+        env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(cache, "numba"), H4PIN_WARMUP=mode,
+                   H4PIN_BENCH_RSS=rss_file)
         t = time.perf_counter()
-        out = subprocess.run([sys.executable, *args], env=env, capture_output=True, text=True, check=True)
-        return time.perf_counter() - t, out.stdout
+        out = subprocess.run([sys.executable, "-c", _RSS_WRAPPER, *args], env=env, capture_output=True, text=True,
+                             check=True)
+        seconds = time.perf_counter() - t
+        with open(rss_file) as f:
+            return seconds, out.stdout, int(f.read()) / 1024
+
+
+def busy(n: int) -> list:
+    """n processes spinning on a core each (the warm-up measured beside two busy jobs)."""
+    import subprocess
+    import sys
+
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def cold_table() -> None:
-    """First use in fresh processes with an empty cache: h4pin's default (numpy path and
-    interpreted twins while a warm-up compiles; measured with the warm-up off, so that the row is
-    the call's own time) against compiling at first use (``H4PIN_WARMUP=inline``, before)."""
+    """First use in fresh processes with an empty cache: h4pin's default (numpy path while a
+    warm-up compiles; measured with the warm-up off, so that the row is the call's own time)
+    against compiling at first use (``H4PIN_WARMUP=inline``); then the warm-up itself, idle and
+    beside two busy processes (seconds, peak resident memory)."""
     import json
     import shutil
     import sys
@@ -470,12 +600,11 @@ def cold_table() -> None:
     rows = {}
     for mode in ("off", "inline"):
         rows.setdefault("first `h4pin table2` (whole command)", {})[mode] = cold_run(
-            ["-c", f"import sys; sys.argv = [{cli!r}, 'table2']; from h4pin.cli import main; main()"], mode)[0]
+            ["-c", f"import sys; sys.argv = [{cli!r}, 'table2']\nfrom h4pin.cli import main\ntry:\n    main()\n"
+                   "except SystemExit as e:\n    assert not e.code, e"], mode)[0]
         steps = json.loads(cold_run(["-c", COLD_SCRIPT.format(steps=COLD_STEPS)], mode)[1])
         for name, seconds in steps.items():
             rows.setdefault(name, {})[mode] = seconds
-    warm = cold_run(["-m", "h4pin.warmup", "--quiet"], "inline")[0]
-    rows["`h4pin warmup` (compile everything, once)"] = {"off": warm}
     print(f"h4pin first use, {platform.processor() or platform.machine()}, empty numba cache, one fresh process "
           f"per column\n")
     print(f"| {'first use':<45} | {'now (s)':>8} | {'compiling at first use (s)':>27} |")
@@ -483,6 +612,17 @@ def cold_table() -> None:
     for name, t in rows.items():
         inline = f"{t['inline']:.2f}" if "inline" in t else "-"
         print(f"| {name:<45} | {t['off']:>8.2f} | {inline:>27} |")
+    print(f"\n`h4pin warmup` (compile everything once), empty cache; before: {PREVIOUS_WARMUP[0]:.0f} s, "
+          f"{PREVIOUS_WARMUP[1]:.0f} MB peak resident (idle); targets <= 60 s, <= 600 MB idle")
+    for label, n in (("idle", 0), ("beside two busy processes", 2)):
+        jobs = busy(n)
+        try:
+            seconds, _, rss = cold_run(["-m", "h4pin.warmup", "--quiet"], "inline")
+        finally:
+            for j in jobs:
+                j.kill()
+                j.wait()
+        print(f"  {label:<28} {seconds:7.1f} s   peak resident {rss:6.0f} MB")
 
 
 def atlas_row(h4: h4pin.H4, repeat: int) -> float:

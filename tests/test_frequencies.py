@@ -12,7 +12,7 @@ import pytest
 from conftest import sample_poses
 
 import h4pin
-from h4pin import verdicts
+from h4pin import verdicts, vibration
 from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.elastic.modes import modes as pinocchio_modes
 from h4pin.stiffness import frequencies as fr
@@ -43,7 +43,7 @@ def test_every_frequency_equals_the_pinocchio_route(robot, elements, payload):
     cond = h4pin.compliance(h4, xs, elements=False).condition
     assert np.sum(cond < 1e4) >= 50
     got = h4pin.modes(h4, xs, payload, method="compiled")
-    assert isinstance(got, fr.Frequencies) and np.all(got.status == verdicts.OK)
+    assert isinstance(got, vibration.Frequencies) and np.all(got.status == verdicts.OK)
     em = h4pin.elastic_model(h4)
     worst = 0.0
     for k, x in enumerate(xs):
@@ -122,3 +122,26 @@ def test_a_designs_mass_model_is_its_urdfs():
         cf, ci = kin._configuration_pack(h4)
         np.testing.assert_allclose(CF[:156], cf[:156], rtol=0, atol=1e-15)
         np.testing.assert_array_equal(CI[:8], ci[:8])
+
+
+def test_the_atlas_and_the_frequency_map_carry_the_first_frequency(proto, centre, tmp_path):
+    """The atlas's first_frequency field (in memory and streamed to zarr) is h4pin.modes's first
+    frequency at its grid points; NaN where the status is not 0."""
+    from h4pin.studies import atlas
+
+    xs = np.linspace(-0.3, 0.3, 7)
+    ds = atlas.atlas(proto, xs, xs[:4], centre[2], 0.1, progress=False, frequency=True)
+    gy, gx = np.meshgrid(xs[:4], xs, indexing="ij")
+    poses = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, centre[2]), np.full(gx.size, 0.1)], axis=1)
+    ref = h4pin.modes(proto, poses, method="pinocchio")
+    got = ds.first_frequency.values.reshape(-1)
+    np.testing.assert_array_equal(ds.status.values.reshape(-1), ref.status)
+    ok = ref.status == 0
+    assert 0 < ok.sum() < len(ok)
+    np.testing.assert_allclose(got[ok], ref.first[ok], rtol=1e-10)
+    assert np.all(np.isnan(got[~ok]))
+    streamed = atlas.atlas(proto, xs, xs[:4], centre[2], 0.1, progress=False, frequency=True,
+                           out=tmp_path / "a.zarr", chunk=8)
+    np.testing.assert_array_equal(streamed.first_frequency.values, ds.first_frequency.values)
+    with pytest.raises(h4pin.ParameterError, match="frequency"):
+        atlas.atlas(h4pin.load("toleranced"), xs[:2], xs[:2], centre[2], progress=False, frequency=True)

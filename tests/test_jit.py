@@ -93,10 +93,10 @@ def test_warmup_compiles_every_gated_function():
     the fallback for good): run in this process, every gate is ready afterwards."""
     from h4pin import warmup
     from h4pin.kinematics import pinocchio as kin
-    from h4pin.stiffness import kernel
+    from h4pin.stiffness import frequencies, kernel
 
     warmup.compile_all()
-    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH]
+    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES]
     for gate in gates:
         assert all(f.signatures for f in gate.functions), gate.name
 

@@ -213,7 +213,8 @@ def test_errors(em, centre, sym):
 
 def test_the_usage_example_of_the_doc_runs():
     text = (Path(__file__).resolve().parents[1] / "docs" / "modes.md").read_text(encoding="utf-8")
-    code = re.search(r"```python\n(.*?)```", text, re.S).group(1)
+    code = "\n".join(re.findall(r"```python\n(.*?)```", text, re.S))  # the blocks in order, one session
     namespace: dict = {}
     exec(compile(code, "docs/modes.md", "exec"), namespace)
     assert isinstance(namespace["res"], Modes)
+    assert isinstance(namespace["batch"], h4pin.Frequencies) and namespace["batch"].first.shape == (2,)

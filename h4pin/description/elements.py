@@ -50,8 +50,10 @@ AXIS_NONE, AXIS_Z, AXIS_ACTUATOR, AXIS_CENTRAL, AXIS_ARM, AXIS_FOREARM, AXIS_BAR
 
 @dataclasses.dataclass(frozen=True)
 class Kind:
-    """One kind of compliant element: the schema row from which the URDF reader, the compliance
-    (every path) and the elastic model take it.
+    """One kind of compliant element: the schema row from which the compiled compliance and the
+    compiled natural frequencies take it (:func:`h4pin.stiffness.kernel.element_table`); a kind
+    made of an existing site, form and axis needs no compiled code. (The URDF tags, the numpy
+    statics route and the elastic model's virtual joints are written per kind.)
 
     Attributes:
         name: the :class:`Elements` field.

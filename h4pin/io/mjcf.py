@@ -556,31 +556,7 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
                     j.name, j.type, j.pos, j.axis = jname, mujoco.mjtJoint.mjJNT_HINGE, _floats(pos), _floats(axis)
                     _spring(mujoco, j, plan)
         if joint_id is not None:
-            joint, jname = model.joints[joint_id], model.names[joint_id]
-            if _is_free(joint):
-                if not frame.placement.isIdentity(1e-12):
-                    raise ParameterError(f"h4: link '{frame.name}' must sit at the origin of its floating joint")
-                for k, suffix in enumerate(SLIDES):
-                    j = body.add_joint()
-                    j.name, j.type = jname + suffix, mujoco.mjtJoint.mjJNT_SLIDE
-                    j.axis = _floats(np.eye(3)[k])
-                    j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
-                j = body.add_joint()
-                j.name, j.type = jname, mujoco.mjtJoint.mjJNT_BALL
-                j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
-            elif _is_revolute(joint):
-                in_link = frame.placement.inverse()  # the joint frame seen from the link
-                j = body.add_joint()
-                j.name, j.type = jname, mujoco.mjtJoint.mjJNT_HINGE
-                j.pos = _floats(in_link.translation)
-                j.axis = _floats(in_link.rotation @ _motion(joint)[3:])
-                lo, hi = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
-                if joint.nq == 1 and np.isfinite(lo) and np.isfinite(hi):
-                    j.limited, j.range = mujoco.mjtLimited.mjLIMITED_TRUE, [float(lo), float(hi)]
-                else:
-                    j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
-            else:
-                raise ParameterError(f"h4: joint '{jname}' ({joint.shortname()}) has no MuJoCo counterpart here")
+            _add_joint(mujoco, body, model, frame, joint_id)
         body.pos, body.quat = _floats(place.translation), _quat(place.rotation)
         mass, com, tensor = inertials.get(frame.name, (0.0, np.zeros(3), np.zeros((3, 3))))
         if mass > 0:
@@ -599,28 +575,80 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
             else:
                 site = body.add_site()
             site.name, site.pos, site.size, site.group = site_name, _floats(xyz), [0.003, 0.0, 0.0], 3
-        for obj in geoms.get(f, []):
-            shape = _geom_shape(mujoco, obj.geometry)
-            if shape is None:
-                continue
-            local = frame.placement.actInv(obj.placement)
-            g = body.add_geom()
-            g.name, (g.type, g.size) = obj.name, shape
-            g.pos, g.quat = _floats(local.translation), _quat(local.rotation)
-            g.rgba = _floats(obj.meshColor)
-            g.density, g.contype, g.conaffinity, g.group = 0.0, 0, 0, 1
+        _add_geoms(mujoco, body, frame, geoms.get(f, []))
     if plan is not None:
         for end in plan.chains:
             if not plan.chains[end].in_link:
                 chain_body(end)  # a chain that carries nothing still has its springs
 
+    _add_closures(mujoco, s, h4, solref, solimp)
+    if plan is None:
+        _add_actuators(mujoco, s, h4)
+    _scene(model, s, mujoco, data)
+    key = s.add_key()
+    key.name = KEYFRAME
+    key.qpos = _floats(qpos(h4, q)) if plan is None else _floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
+    return s
+
+
+def _add_joint(mujoco: Any, body: Any, model: pin.Model, frame: Any, joint_id: int) -> None:
+    """The MuJoCo joints of Pinocchio joint ``joint_id`` on ``body`` (its child link's frame):
+    a hinge (with its limits) or a floating joint's three slides and ball."""
+    joint, jname = model.joints[joint_id], model.names[joint_id]
+    if _is_free(joint):
+        if not frame.placement.isIdentity(1e-12):
+            raise ParameterError(f"h4: link '{frame.name}' must sit at the origin of its floating joint")
+        for k, suffix in enumerate(SLIDES):
+            j = body.add_joint()
+            j.name, j.type = jname + suffix, mujoco.mjtJoint.mjJNT_SLIDE
+            j.axis = _floats(np.eye(3)[k])
+            j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+        j = body.add_joint()
+        j.name, j.type = jname, mujoco.mjtJoint.mjJNT_BALL
+        j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    elif _is_revolute(joint):
+        in_link = frame.placement.inverse()  # the joint frame seen from the link
+        j = body.add_joint()
+        j.name, j.type = jname, mujoco.mjtJoint.mjJNT_HINGE
+        j.pos = _floats(in_link.translation)
+        j.axis = _floats(in_link.rotation @ _motion(joint)[3:])
+        lo, hi = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+        if joint.nq == 1 and np.isfinite(lo) and np.isfinite(hi):
+            j.limited, j.range = mujoco.mjtLimited.mjLIMITED_TRUE, [float(lo), float(hi)]
+        else:
+            j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    else:
+        raise ParameterError(f"h4: joint '{jname}' ({joint.shortname()}) has no MuJoCo counterpart here")
+
+
+def _add_geoms(mujoco: Any, body: Any, frame: Any, objs: list[Any]) -> None:
+    """The visual geometries ``objs`` of a link (frame ``frame``) on its body (no contacts)."""
+    for obj in objs:
+        shape = _geom_shape(mujoco, obj.geometry)
+        if shape is None:
+            continue
+        local = frame.placement.actInv(obj.placement)
+        g = body.add_geom()
+        g.name, (g.type, g.size) = obj.name, shape
+        g.pos, g.quat = _floats(local.translation), _quat(local.rotation)
+        g.rgba = _floats(obj.meshColor)
+        g.density, g.contype, g.conaffinity, g.group = 0.0, 0, 0, 1
+
+
+def _add_closures(mujoco: Any, s: Any, h4: Any, solref: list[float], solimp: list[float]) -> None:
+    """One connect equality per loop closure, between its two sites."""
     for c in _closure_list(h4):
         e = s.add_equality()
         e.name, e.type = c.name, mujoco.mjtEq.mjEQ_CONNECT
         e.objtype = mujoco.mjtObj.mjOBJ_SITE
         e.name1, e.name2 = f"{c.name}_parent", f"{c.name}_child"
         e.solref, e.solimp = list(solref), list(solimp)
-    for jname in h4.actuated_joint_names if plan is None else ():
+
+
+def _add_actuators(mujoco: Any, s: Any, h4: Any) -> None:
+    """A motor on each actuated joint, its control range the URDF's effort limit."""
+    model = h4.model
+    for jname in h4.actuated_joint_names:
         effort = float(model.effortLimit[model.joints[model.getJointId(jname)].idx_v])
         a = s.add_actuator()
         a.name, a.trntype, a.target = jname, mujoco.mjtTrn.mjTRN_JOINT, jname
@@ -629,11 +657,6 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
             a.ctrllimited, a.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, [-effort, effort]
         else:
             a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    _scene(model, s, mujoco, data)
-    key = s.add_key()
-    key.name = KEYFRAME
-    key.qpos = _floats(qpos(h4, q)) if plan is None else _floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
-    return s
 
 
 def _named_qpos(m: Any, model: pin.Model, q: np.ndarray) -> np.ndarray:

@@ -26,7 +26,6 @@ pipeline; :func:`h4pin.modes` takes the Pinocchio route for the others.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import weakref
 from typing import Any
@@ -35,26 +34,12 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from h4pin import _jit, verdicts
-from h4pin.description.elements import (
-    FORM_BEAM_BENDING,
-    FORM_BEAM_TORSION,
-    FORM_COUPLE,
-    FORM_COUPLE_AXIAL,
-    FORM_COUPLE_NORMAL,
-    FORM_FORCE,
-    FORM_FORCE_AXIAL,
-    FORM_FORCE_NORMAL,
-    SITE_ARM,
-    SITE_BAR,
-    SITE_JOINT,
-    SITE_MOUNT,
-    SITE_TIP,
-)
+from h4pin import _jit
+from h4pin.description.elements import SITE_BAR, SITE_MOUNT, SITE_TIP
 from h4pin.errors import ParameterError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import pinocchio as kin
-from h4pin.stiffness import pipeline
+from h4pin.stiffness import kernel, pipeline
 from h4pin.stiffness.packed import _CBEND, _CCTRL, _CTENS, _CTORS, _P, EL_HEADER, EL_ROW
 from h4pin.stiffness.pipeline import _A, _B, _EA, _GC, _LW, _TV, X_F, X_S, X_Y
 
@@ -362,61 +347,6 @@ def _inv3(a, b, c, d, e, f, g, h, k, out):
 
 
 @njit(cache=True, nogil=True)
-def _normals(e):
-    """Two unit vectors n1, n2 normal to the unit e, with n1 x n2 = e."""
-    k = 0
-    if abs(e[1]) < abs(e[k]):
-        k = 1
-    if abs(e[2]) < abs(e[k]):
-        k = 2
-    n1 = np.array(_cr(e[0], e[1], e[2], 1.0 if k == 0 else 0.0, 1.0 if k == 1 else 0.0, 1.0 if k == 2 else 0.0))
-    n1 /= math.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
-    return n1, np.array(_cr(e[0], e[1], e[2], n1[0], n1[1], n1[2]))
-
-
-@njit(cache=True, nogil=True)
-def _site_springs(form, c, length, e, cols, u):
-    """The rank-one parts (c_t, u_t) of an element's compliance C = sum c_t u_t u_t^T in its form
-    (u_t (6,) a twist [translation; rotation] at the site's point, dual to its wrench [force;
-    couple]) into cols (compliances) and u (rows); returns how many. A beam's bending in each
-    plane normal to its axis e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2`` (the cantilever
-    of :func:`h4pin.stiffness.elements.beam_compliance`)."""
-    n1, n2 = _normals(e)
-    rot = form == FORM_COUPLE or form == FORM_COUPLE_NORMAL or form == FORM_COUPLE_AXIAL
-    off = 3 if rot else 0
-    if form == FORM_FORCE or form == FORM_COUPLE:
-        for a in range(3):
-            u[a, :] = 0.0
-            u[a, off + a] = 1.0
-            cols[a] = c
-        return 3
-    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
-        for a in range(2):
-            u[a, :] = 0.0
-            u[a, off:off + 3] = n1 if a == 0 else n2
-            cols[a] = c
-        return 2
-    if form == FORM_FORCE_AXIAL or form == FORM_COUPLE_AXIAL:
-        u[0, :] = 0.0
-        u[0, off:off + 3] = e
-        cols[0] = c
-        return 1
-    if form == FORM_BEAM_TORSION:
-        u[0, :] = 0.0
-        u[0, 3:] = e
-        cols[0] = c * length
-        return 1
-    k = 1.5 / length  # FORM_BEAM_BENDING
-    u[0, :3], u[0, 3:] = n1, k * n2
-    u[1, :3], u[1, 3:] = 0.0, n2
-    u[2, :3], u[2, 3:] = n2, -k * n1
-    u[3, :3], u[3, 3:] = 0.0, n1
-    cols[0] = cols[2] = c * length ** 3 / 3.0
-    cols[1] = cols[3] = c * length / 4.0
-    return 4
-
-
-@njit(cache=True, nogil=True)
 def _y_layout(EG, sy):
     """The y coordinates (rows of M_y): dtp (8), then per leg its forearm's elastic rotation phi_i
     and tip torsion tau_i (8), then a 6-D twist per site that carries an element other than a bar
@@ -430,9 +360,8 @@ def _y_layout(EG, sy):
         site, form, count, off = int(EG[base]), int(EG[base + 1]), int(EG[base + 3]), int(EG[base + 4])
         if site == SITE_BAR:
             continue
-        per = 3 if (form == FORM_FORCE or form == FORM_COUPLE) else (
-            2 if (form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL) else (4 if form == FORM_BEAM_BENDING else 1))
-        st = 0 if site == SITE_JOINT else (1 if site == SITE_ARM else (2 if site == SITE_MOUNT else 3))
+        per = pipeline.spring_count(form)
+        st = site  # the site codes joint, arm, mount, tip are 0..3
         for s in range(count):
             if EG[off + 2 * s] == 0.0:
                 continue
@@ -470,7 +399,7 @@ def _put(J, c, v, w):
 
 
 @njit(cache=True, nogil=True)
-def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # pragma: no cover - compiled
+def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # pragma: no cover - compiled
     """The natural frequencies (Hz, ascending, NaN past the massive count) into freq of one pose
     x (4,), from the pipeline's q (4,) and intermediates Xrow (:data:`h4pin.stiffness.pipeline.NX`),
     the packed geometry G and element table EG, the mass model MP (:func:`pack_masses`), the
@@ -482,9 +411,17 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
     sqrt(c)); ``H = R^T M_y R``. Its eigenvalues mu (Householder, then QL: all of them cost less
     than four by bisection, whose Sturm counts divide at every step): the massive ones (above
     :data:`MASSLESS_TOL` of the largest) give ``1 / (2 pi sqrt(mu))``, as many as freq holds."""
-    O, M6, axes, Sinv, sy, My, R, MR, H, J, Jc, cols, comp, us, Xs, T3 = W
-    Y = Xrow[X_Y:X_Y + 64].reshape(8, 8)
-    S = Xrow[X_S:X_S + pipeline._ROWS].reshape(pipeline._ROWS, 1)
+    _bodies(x, q, Xrow, G, MP, CF, CI, W)
+    ny, ns = _springs(Xrow, G, EG, W)
+    _mass_matrix(x, Xrow, G, ny, W)
+    return _eigenvalues(ny, ns, W, freq)
+
+
+@njit(cache=True, nogil=True)
+def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
+    """Every body's origin O, world spatial inertia M6 and joint axes (rows of ``axes``), and the
+    bars' 3 x 3 rate solves Sinv, at pose x (the forward kinematics of the mass model)."""
+    O, M6, axes, Sinv, T3 = W[0], W[1], W[2], W[3], W[15]
     D = x[:3]
     th = x[3]
     ct, st = math.cos(th), math.sin(th)
@@ -563,7 +500,16 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
         _rotm(bl[12:15], -bl[15] * th, Rq)
         _mm(Rlp, Rq, R1)
         _spatial(R1, O[21 + k], bl[16:16 + _INERTIA], M6[21 + k])
-    # --- the springs: their columns of R (y per unit deformation, times sqrt(c)) ----------------
+
+
+@njit(cache=True, nogil=True)
+def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
+    """The springs' columns of R (y per unit deformation, times sqrt(c)); returns (ny, ns)."""
+    axes, sy, R, comp, us, Xs = W[2], W[4], W[6], W[12], W[13], W[14]
+    Y = Xrow[X_Y:X_Y + 64].reshape(8, 8)
+    S = Xrow[X_S:X_S + pipeline._ROWS].reshape(pipeline._ROWS, 1)
+    A = Xrow[X_S + _A:X_S + _A + 24].reshape(8, 3)
+    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
     ny, ns = _y_layout(EG, sy)
     R[:ny, :ns] = 0.0
     ball = np.zeros(8)
@@ -592,7 +538,7 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
         count, off = int(EG[base + 3]), int(EG[base + 4])
         if site == SITE_BAR:
             continue
-        stype = 0 if site == SITE_JOINT else (1 if site == SITE_ARM else (2 if site == SITE_MOUNT else 3))
+        stype = site  # the site codes joint, arm, mount, tip are 0..3 (the rows of sy)
         # the bars' closures give the plate's motion: M1 dtp = w . (dA - dB) over the bars that load
         # the site: + for a twist of the forearm side (mount, tip), - of the plate side (joint, arm)
         sign = 1.0 if (site == SITE_MOUNT or site == SITE_TIP) else -1.0
@@ -604,7 +550,7 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
             e = Xs[_EA:_EA + 3, 0].copy()
             pipeline._site_point(G, site, s, 0, 1, S, Xs)
             o = Xs[_EA:_EA + 3, 0].copy()
-            k = _site_springs(form, c, length, e, comp, us)
+            k = pipeline.site_springs(form, c, length, e, comp, us)
             y0 = sy[stype, s]
             for p in range(k):
                 sc = math.sqrt(comp[p])
@@ -622,36 +568,24 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
                         R[a, t] += Y[a, m] * g
                 t += 1
             axes[30 + 4 * stype + s] = o  # the site's point, for the bodies' twists below
-    # --- M_y: the bodies' Jacobians in y ------------------------------------------------------
+    return ny, ns
+
+
+@njit(cache=True, nogil=True)
+def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
+    """M_y = sum_b J_b^T M6_b J_b: the bodies' twists per unit y coordinate."""
+    O, M6, axes, Sinv, sy, My, J, Jc, cols = W[0], W[1], W[2], W[3], W[4], W[5], W[9], W[10], W[11]
+    D = x[:3]
+    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
     My[:ny, :ny] = 0.0
     for b in (20, 23):  # the central bar (at its origin) and the payload (at D): dtp's first six
-        for c in range(6):
-            v = np.zeros(3)
-            w = np.zeros(3)
-            if c < 3:
-                v[c] = 1.0
-            else:
-                w[c - 3] = 1.0
-                v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[b, 0] - D[0], O[b, 1] - D[1], O[b, 2] - D[2])
-            _put(J, c, v, w)
-            cols[c] = c
-        _add_body(My, M6[b], J, cols, 6)
+        _add_body(My, M6[b], J, cols, _site_columns(J, cols, 0, 0, O[b], D))
     for k in range(2):  # lateral bar k: dtp's first six, its revolute, its joint site
         b = 21 + k
-        nc = 0
-        for c in range(7):
-            v = np.zeros(3)
-            w = np.zeros(3)
-            if c < 3:
-                v[c] = 1.0
-            elif c < 6:
-                w[c - 3] = 1.0
-                v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[b, 0] - D[0], O[b, 1] - D[1], O[b, 2] - D[2])
-            else:
-                w[:] = axes[28 + k]
-            _put(J, nc, v, w)
-            cols[nc] = c if c < 6 else 6 + k
-            nc += 1
+        nc = _site_columns(J, cols, 0, 0, O[b], D)
+        _put(J, nc, np.zeros(3), axes[28 + k])
+        cols[nc] = 6 + k
+        nc += 1
         nc = _site_columns(J, cols, nc, sy[0, k], O[b], axes[30 + k])
         _add_body(My, M6[b], J, cols, nc)
     for i in range(4):
@@ -667,7 +601,12 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # noqa: C901  # 
         _add_body(My, M6[i], J, cols, nc)
         for j in range(2):
             _bar_columns(i, 2 * i + j, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols)
-    # --- H = R^T M_y R and its eigenvalues ------------------------------------------------------
+
+
+@njit(cache=True, nogil=True)
+def _eigenvalues(ny, ns, W, freq):  # pragma: no cover - compiled
+    """H = R^T M_y R and its eigenvalues into freq (Hz); returns the massive count."""
+    My, R, MR, H = W[5], W[6], W[7], W[8]
     for a in range(ny):
         for c in range(ns):
             t2 = 0.0
@@ -811,26 +750,12 @@ FREQUENCIES = _jit.Gate("natural frequencies", frequencies_run)
 _NY, _NS = 16 + 6 * 14, 16 + 10 * 2 + 5 * 4 + 8 * 4 + 2 * 4
 
 
-def _robot(robot: Any):
-    """The :class:`h4pin.H4` of ``robot`` (an H4 or its :class:`~h4pin.elastic.h4.ElasticH4`)."""
-    from h4pin.elastic.h4 import ElasticH4
-    from h4pin.robot import H4
-
-    if isinstance(robot, ElasticH4):
-        return robot.robot
-    if isinstance(robot, H4):
-        return robot
-    raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {type(robot).__name__}")
-
-
 def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bool = True,
                 count: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The compiled twin at poses (N, 4) of a robot whose parallelograms are exact, with its own
     elements: (frequencies (N, m) Hz ascending, NaN past each pose's massive count and where the
     status is not 0; the massive count (N,); the status (N,), :mod:`h4pin.verdicts`). ``count``:
     how many frequencies to keep (default: all)."""
-    from h4pin.stiffness import kernel
-
     el = None if h4.elements.off else h4.elements
     kern = kernel.for_geometry(h4.geometry, el)
     x = kernel._readonly(np.ascontiguousarray(poses, dtype=float).reshape(-1, 4))
@@ -853,103 +778,4 @@ def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bo
     return freq, counts, status
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class Frequencies:
-    """Natural frequencies at many poses (:func:`modes` with (N, 4) poses).
-
-    Attributes:
-        frequencies: (N, m) Hz, ascending per pose; NaN past a pose's massive count and where its
-            status is not 0.
-        massive: (N,) how many massive directions each pose has (its frequencies).
-        status: (N,) int8 verdicts (:mod:`h4pin.verdicts`; 0: computed).
-        poses: (N, 4) [x, y, z, theta] (m, rad).
-        payload: the payload, or None.
-    """
-
-    frequencies: np.ndarray
-    massive: np.ndarray
-    status: np.ndarray
-    poses: np.ndarray
-    payload: Any
-
-    @property
-    def first(self) -> np.ndarray:
-        """(N,) the lowest natural frequency of each pose (Hz; NaN where its status is not 0)."""
-        return self.frequencies[:, 0]
-
-
-METHODS = ("auto", "compiled", "pinocchio")
-
-
-def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "auto", link_inertias: bool = True,
-          data: Any = None):
-    """Natural frequencies (and mode shapes) of the elastic H4 at a pose or at many.
-
-    The elastic H4 of :func:`h4pin.elastic_model` (every compliance a spring, the robot's own
-    elements; actuators locked; the URDF's link inertias; an optional rigid payload on the
-    central bar; massless motions condensed): :mod:`h4pin.stiffness.frequencies` (compiled,
-    the module docstring) or :func:`h4pin.elastic.modes.modes` (Pinocchio's ``crba`` on the
-    elastic model), which agree to round-off (``tests/test_frequencies.py``).
-
-    Args:
-        robot: an :class:`h4pin.H4` or its :class:`h4pin.ElasticH4`.
-        pose: (4,) [x, y, z, theta] (m, rad), or (N, 4).
-        payload: an :class:`h4pin.Payload` on the central bar, or None.
-        method: ``"auto"`` (the compiled twin once compiled, for a robot whose parallelograms are
-            exact; else Pinocchio), ``"compiled"`` or ``"pinocchio"``.
-        link_inertias: the URDF's link inertias (True) or massless links (only the payload has mass).
-        data: a ``pin.Data`` of the elastic model for the Pinocchio route.
-
-    Returns:
-        One pose: :class:`h4pin.Modes` (its shapes computed by the Pinocchio route on first
-        access when the twin gave the frequencies). (N, 4): :class:`Frequencies` (refused poses
-        NaN, with their status).
-
-    Raises:
-        PoseError, UnreachablePoseError (and subclasses), UnrestrainedMotionError: one pose the
-        robot cannot take or that is singular (a batch gives NaN and the status instead).
-        ParameterError: a bad method, payload or robot.
-    """
-    from h4pin.elastic.modes import Modes, Payload
-    from h4pin.elastic.modes import modes as pinocchio_modes
-    from h4pin.kinematics.closed_form import as_poses
-    from h4pin.stiffness import kernel
-
-    if method not in METHODS:
-        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
-    if payload is not None and not isinstance(payload, Payload):
-        raise ParameterError(f"payload must be an h4pin.Payload or None, got {type(payload).__name__}")
-    h4 = _robot(robot)
-    x = as_poses(pose).copy()
-    x.setflags(write=False)
-    compiled = h4.geometry.ideal and method != "pinocchio" and (
-        method == "compiled" or (FREQUENCIES.ready and kernel.ONE.ready and kernel.BATCH.ready))
-    if method == "compiled" and not h4.geometry.ideal:
-        raise ParameterError("the compiled twin takes robots whose parallelograms are exact; use method='pinocchio'")
-    if x.ndim == 1:
-        if compiled:
-            freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
-            if status[0] == verdicts.OK:
-                m = int(counts[0, 0])
-                f = freq[0, :m].copy()
-                f.setflags(write=False)
-                return Modes(f, x, payload, int(counts[0, 1]) - m, lambda: pinocchio_modes(
-                    robot, x, payload, link_inertias=link_inertias, data=data)._shapes())
-        return pinocchio_modes(robot, x, payload, link_inertias=link_inertias, data=data)  # its typed error
-    if compiled:
-        freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
-        return Frequencies(freq, counts[:, 0].copy(), status, x, payload)
-    from h4pin.stiffness.api import compliance
-
-    status = compliance(h4, x, "consistent", on_error="nan").status.astype(np.int8)
-    rows = [pinocchio_modes(robot, xk, payload, link_inertias=link_inertias, data=data).frequencies if s == 0
-            else np.zeros(0) for xk, s in zip(x, status, strict=True)]
-    width = max([len(r) for r in rows] + [1])
-    freq = np.full((len(x), width), np.nan)
-    for k, r in enumerate(rows):
-        freq[k, :len(r)] = r
-    return Frequencies(freq, np.array([len(r) for r in rows]), status, x, payload)
-
-
-__all__ = ["FREQUENCIES", "MASSLESS_TOL", "METHODS", "Frequencies", "frequencies", "frequencies_run", "modes",
-           "pack_masses"]
+__all__ = ["FREQUENCIES", "MASSLESS_TOL", "frequencies", "frequencies_run", "pack_masses", "pack_masses_params"]

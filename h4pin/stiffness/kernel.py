@@ -31,43 +31,25 @@ import numba
 import numpy as np
 
 from h4pin import _jit
-from h4pin.description.elements import AXES, FORMS, KINDS, SITES, Elements
+from h4pin.description.elements import AXES, FORMS, KINDS, SITES, Elements, Kind
 from h4pin.description.geometry import H4Geometry, forearms, spring_compliances
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.stiffness import pipeline
 from h4pin.stiffness.eq30 import MODELS
 from h4pin.stiffness.packed import (
-    _BB,
-    _BM,
-    _C0,
-    _CBEND,
-    _CCTRL,
-    _CLEAR,
-    _CTENS,
-    _CTORS,
-    _LAT,
-    _LL,
-    _M,
-    _P,
-    _QHI,
-    _QLO,
-    _R2,
     _SIZE,
-    _U,
-    _UM,
-    _UV,
-    _UVU,
-    _V,
-    _WHI,
-    _WLO,
     EL_HEADER,
     EL_ROW,
     NO_ELEMENTS,
     NO_J_N,
     NO_TERMS_N,
     NO_X_N,
+    SHAPES,
     KernelResult,
+    beam_lengths,
+    check_packed,
+    pack,
 )
 
 #: Default chunk of :func:`iter_compliance` (about 36 MB of output without terms).
@@ -102,18 +84,13 @@ def _namespace(g: H4Geometry) -> types.SimpleNamespace:
     return types.SimpleNamespace(**_inputs(g, g.compliances()))
 
 
-_SHAPES = {"P": (4, 3), "u": (4, 3), "A0": (8, 3), "l": (8,), "lat": (8,), "C0": (2, 3), "b": (8, 3),
-           "c_ctrl": (4,), "c_bend": (4,), "c_tors": (4,), "c_tens": (8,), "q_lo": (4,), "q_hi": (4,),
-           "omega_lo": (2,), "omega_hi": (2,)}
-
-
 def _array(g: Any, name: str) -> np.ndarray:
     try:
         value = np.asarray(getattr(g, name), dtype=float)
     except AttributeError:
         raise ParameterError(f"geometry object has no attribute {name!r}") from None
-    if value.shape != _SHAPES[name]:
-        raise ParameterError(f"geometry.{name} must have shape {_SHAPES[name]}, got {value.shape}")
+    if value.shape != SHAPES[name]:
+        raise ParameterError(f"geometry.{name} must have shape {SHAPES[name]}, got {value.shape}")
     if not np.all(np.isfinite(value)):
         raise ParameterError(f"geometry.{name} has non-finite entries")
     return value
@@ -135,66 +112,6 @@ def _check(a: dict[str, Any]) -> None:
         raise ParameterError(f"geometry.bar_clearance must be finite and >= 0, got {clearance!r}")
 
 
-def _check_packed(G: np.ndarray) -> None:
-    """The check of :func:`prepare` on packed vectors (..., _SIZE): P_i is the foot of the
-    perpendicular from A_i (m_i . u_i = 0)."""
-    m = G[..., _M:_M + 12].reshape(G.shape[:-1] + (4, 3))
-    u = G[..., _U:_U + 12].reshape(G.shape[:-1] + (4, 3))
-    if np.any(np.abs(np.einsum("...ia,...ia->...i", m, u)) > 1e-9 * np.linalg.norm(m, axis=-1)):
-        raise ParameterError("geometry.P must be the foot of the perpendicular from the forearm end A_i "
-                             "on the actuator axis (m_i . u_i = 0)")
-
-
-def pack(P: np.ndarray, u: np.ndarray, A0: np.ndarray, l: np.ndarray, lat: np.ndarray, C0: np.ndarray,
-         b: np.ndarray, c_ctrl: np.ndarray, c_bend: np.ndarray, c_tors: np.ndarray, c_tens: np.ndarray,
-         q_lo: np.ndarray, q_hi: np.ndarray, omega_lo: np.ndarray, omega_hi: np.ndarray,
-         bar_clearance: float | np.ndarray) -> np.ndarray:
-    """The packed vectors G (..., _SIZE) of the kernel from the attributes of :func:`prepare`
-    (shapes there), each with any leading robot axes (broadcast). No checks: :func:`prepare`
-    and :func:`pack_fields` check before packing."""
-    P, u, A0, l, C0, b = (np.asarray(x, dtype=float) for x in (P, u, A0, l, C0, b))
-    lat = np.asarray(lat, dtype=float)
-    rest = {"c_ctrl": c_ctrl, "c_bend": c_bend, "c_tors": c_tors, "c_tens": c_tens, "q_lo": q_lo, "q_hi": q_hi,
-            "omega_lo": omega_lo, "omega_hi": omega_hi}
-    batch = np.broadcast_shapes(*(np.shape(x)[:np.ndim(x) - len(_SHAPES[k])] for k, x in
-                                  {"P": P, "u": u, "A0": A0, "l": l, "lat": lat, "C0": C0, "b": b, **rest}.items()),
-                                np.shape(bar_clearance))
-    leg = np.repeat(np.arange(4), 2)
-    ul = u[..., leg, :]
-    v = A0 - P[..., leg, :]
-    m = 0.5 * (v[..., 0::2, :] + v[..., 1::2, :])
-    G = np.zeros(batch + (_SIZE,))
-
-    def put(offset: int, x: np.ndarray, trailing: int = 1) -> None:
-        x = np.asarray(x, dtype=float)
-        x = x.reshape(x.shape[:x.ndim - trailing] + (int(np.prod(x.shape[x.ndim - trailing:])),))
-        G[..., offset:offset + x.shape[-1]] = x
-
-    put(_P, P, 2)
-    put(_U, u, 2)
-    put(_V, v, 2)
-    put(_UV, np.cross(ul, v), 2)
-    put(_UVU, np.einsum("...na,...na->...n", ul, v)[..., None] * ul, 2)
-    put(_M, m, 2)
-    put(_UM, np.cross(u, m), 2)
-    put(_R2, np.einsum("...ia,...ia->...i", m, m))
-    put(_LL, 0.5 * (l[..., 0::2] + l[..., 1::2]))
-    put(_C0, C0, 2)
-    put(_BB, b, 2)
-    put(_BM, 0.5 * (b[..., 0::2, :] + b[..., 1::2, :]), 2)
-    put(_LAT, lat)
-    put(_CCTRL, c_ctrl)
-    put(_CBEND, c_bend)
-    put(_CTORS, c_tors)
-    put(_CTENS, c_tens)
-    put(_QLO, q_lo)
-    put(_QHI, q_hi)
-    put(_WLO, omega_lo)
-    put(_WHI, omega_hi)
-    G[..., _CLEAR] = bar_clearance
-    return G
-
-
 def pack_fields(fields: dict[str, Any]) -> np.ndarray:
     """The packed vectors (..., _SIZE) of many robots at once, checked as :func:`prepare` checks
     one: ``fields`` are those of :class:`H4Geometry` with leading robot axes, as
@@ -204,16 +121,8 @@ def pack_fields(fields: dict[str, Any]) -> np.ndarray:
     a = _inputs(fields, spring_compliances(fields["springs"], r, fields["l"]))
     _check(a)
     G = pack(**a)
-    _check_packed(G)
+    check_packed(G)
     return G
-
-
-def _lengths(packed: np.ndarray) -> dict[str, np.ndarray]:
-    """Lengths of the beams a geometry holds (m): the central-bar segments |C_k - D| (2,), the
-    lateral arms |B_i - C_k| (4,) and the forearms |A_i - P_i| (4,)."""
-    return {"central": np.linalg.norm(packed[_C0:_C0 + 6].reshape(2, 3), axis=1),
-            "arm": np.linalg.norm(packed[_BM:_BM + 12].reshape(4, 3), axis=1),
-            "forearm": np.linalg.norm(packed[_M:_M + 12].reshape(4, 3), axis=1)}
 
 
 def pack_elements(elements: Elements | None, packed: np.ndarray) -> np.ndarray:
@@ -221,13 +130,21 @@ def pack_elements(elements: Elements | None, packed: np.ndarray) -> np.ndarray:
     kinds of ``elements`` that are on (in :data:`h4pin.description.elements.KINDS` order), with the
     beam lengths of the packed geometry ``packed``. Read-only; :data:`NO_ELEMENTS` when none is on."""
     on = [] if elements is None else [k for k in KINDS if elements.on(k.name)]
-    if not on:
+    return element_table([(k, getattr(elements, k.name)) for k in on], packed)
+
+
+def element_table(kinds: list[tuple[Kind, Any]], packed: np.ndarray) -> np.ndarray:
+    """The element table of (kind, values) pairs: any :class:`h4pin.description.elements.Kind`
+    (a schema row: site, form, axis), values ``kind.count`` compliances, or rigidities when
+    ``kind.rigidity``. This is all the compiled pipeline knows of an element: a new kind is a
+    schema row, not code. Read-only; :data:`NO_ELEMENTS` when ``kinds`` is empty."""
+    if not kinds:
         return NO_ELEMENTS
-    lengths = _lengths(packed)
+    lengths = beam_lengths(packed)
     rows, values = [], []
-    offset = EL_HEADER + EL_ROW * len(on)
-    for kind in on:
-        raw = np.asarray(getattr(elements, kind.name), dtype=float)
+    offset = EL_HEADER + EL_ROW * len(kinds)
+    for kind, value in kinds:
+        raw = np.broadcast_to(np.asarray(value, dtype=float), (kind.count,))
         if kind.rigidity:
             with np.errstate(divide="ignore"):
                 c = np.where(np.isinf(raw), 0.0, 1.0 / raw)
@@ -237,7 +154,7 @@ def pack_elements(elements: Elements | None, packed: np.ndarray) -> np.ndarray:
         rows.append([SITES.index(kind.site), FORMS.index(kind.form), AXES.index(kind.axis), kind.count, offset])
         values.append(np.stack([kind.series * c, np.broadcast_to(length, (kind.count,))], axis=1).ravel())
         offset += 2 * kind.count
-    table = np.concatenate([[float(len(on))], np.ravel(rows), *values]).astype(np.float64)
+    table = np.concatenate([[float(len(kinds))], np.ravel(rows), *values]).astype(np.float64)
     table.setflags(write=False)
     return table
 
@@ -253,11 +170,11 @@ class Kernel:
 
     def __init__(self, g: Any):
         self.geometry = g
-        a: dict[str, Any] = {name: _array(g, name) for name in _SHAPES}
+        a: dict[str, Any] = {name: _array(g, name) for name in SHAPES}
         a["bar_clearance"] = float(getattr(g, "bar_clearance", np.nan))
         _check(a)
         G = pack(**a)
-        _check_packed(G)
+        check_packed(G)
         G.setflags(write=False)
         self.packed = G
         self.elements = NO_ELEMENTS

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """What the compiled pipeline and its Python front end share: the layouts of the packed geometry
 vector and of the element table (offsets into float64 arrays, filled by
-:func:`h4pin.stiffness.kernel.pack` and :func:`h4pin.stiffness.kernel.pack_elements`), the result,
+:func:`pack` and :func:`h4pin.stiffness.kernel.pack_elements`), the result,
 :class:`KernelResult`, and the placeholders of the outputs a run does not write.
 
 :mod:`h4pin.stiffness.pipeline` (compiled) and :mod:`h4pin.stiffness.kernel` (Python) both import
@@ -14,6 +14,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+
+from h4pin.errors import ParameterError
 
 # Layout of the packed geometry vector (offsets into one float64 array).
 _P = 0  # (4, 3) P_i
@@ -74,5 +76,80 @@ NO_X_N = np.empty((1, 1))
 NO_ELEMENTS = np.zeros(EL_HEADER)
 NO_ELEMENTS.setflags(write=False)
 
+#: The geometry attributes the pipeline packs, and their shapes (legs i, bars n = 2 i + j).
+SHAPES = {"P": (4, 3), "u": (4, 3), "A0": (8, 3), "l": (8,), "lat": (8,), "C0": (2, 3), "b": (8, 3),
+           "c_ctrl": (4,), "c_bend": (4,), "c_tors": (4,), "c_tens": (8,), "q_lo": (4,), "q_hi": (4,),
+           "omega_lo": (2,), "omega_hi": (2,)}
 
-__all__ = ["EL_HEADER", "EL_ROW", "NO_ELEMENTS", "NO_J_N", "NO_TERMS_N", "NO_X_N", "KernelResult"]
+
+def pack(P: np.ndarray, u: np.ndarray, A0: np.ndarray, l: np.ndarray, lat: np.ndarray, C0: np.ndarray,
+         b: np.ndarray, c_ctrl: np.ndarray, c_bend: np.ndarray, c_tors: np.ndarray, c_tens: np.ndarray,
+         q_lo: np.ndarray, q_hi: np.ndarray, omega_lo: np.ndarray, omega_hi: np.ndarray,
+         bar_clearance: float | np.ndarray) -> np.ndarray:
+    """The packed vectors G (..., _SIZE) of the kernel from the attributes of :func:`prepare`
+    (shapes there), each with any leading robot axes (broadcast). No checks: :func:`prepare`
+    and :func:`pack_fields` check before packing."""
+    P, u, A0, l, C0, b = (np.asarray(x, dtype=float) for x in (P, u, A0, l, C0, b))
+    lat = np.asarray(lat, dtype=float)
+    rest = {"c_ctrl": c_ctrl, "c_bend": c_bend, "c_tors": c_tors, "c_tens": c_tens, "q_lo": q_lo, "q_hi": q_hi,
+            "omega_lo": omega_lo, "omega_hi": omega_hi}
+    batch = np.broadcast_shapes(*(np.shape(x)[:np.ndim(x) - len(SHAPES[k])] for k, x in
+                                  {"P": P, "u": u, "A0": A0, "l": l, "lat": lat, "C0": C0, "b": b, **rest}.items()),
+                                np.shape(bar_clearance))
+    leg = np.repeat(np.arange(4), 2)
+    ul = u[..., leg, :]
+    v = A0 - P[..., leg, :]
+    m = 0.5 * (v[..., 0::2, :] + v[..., 1::2, :])
+    G = np.zeros(batch + (_SIZE,))
+
+    def put(offset: int, x: np.ndarray, trailing: int = 1) -> None:
+        x = np.asarray(x, dtype=float)
+        x = x.reshape(x.shape[:x.ndim - trailing] + (int(np.prod(x.shape[x.ndim - trailing:])),))
+        G[..., offset:offset + x.shape[-1]] = x
+
+    put(_P, P, 2)
+    put(_U, u, 2)
+    put(_V, v, 2)
+    put(_UV, np.cross(ul, v), 2)
+    put(_UVU, np.einsum("...na,...na->...n", ul, v)[..., None] * ul, 2)
+    put(_M, m, 2)
+    put(_UM, np.cross(u, m), 2)
+    put(_R2, np.einsum("...ia,...ia->...i", m, m))
+    put(_LL, 0.5 * (l[..., 0::2] + l[..., 1::2]))
+    put(_C0, C0, 2)
+    put(_BB, b, 2)
+    put(_BM, 0.5 * (b[..., 0::2, :] + b[..., 1::2, :]), 2)
+    put(_LAT, lat)
+    put(_CCTRL, c_ctrl)
+    put(_CBEND, c_bend)
+    put(_CTORS, c_tors)
+    put(_CTENS, c_tens)
+    put(_QLO, q_lo)
+    put(_QHI, q_hi)
+    put(_WLO, omega_lo)
+    put(_WHI, omega_hi)
+    G[..., _CLEAR] = bar_clearance
+    return G
+
+
+def beam_lengths(packed: np.ndarray) -> dict[str, np.ndarray]:
+    """Lengths of the beams a geometry holds (m): the central-bar segments |C_k - D| (2,), the
+    lateral arms |B_i - C_k| (4,) and the forearms |A_i - P_i| (4,)."""
+    return {"central": np.linalg.norm(packed[_C0:_C0 + 6].reshape(2, 3), axis=1),
+            "arm": np.linalg.norm(packed[_BM:_BM + 12].reshape(4, 3), axis=1),
+            "forearm": np.linalg.norm(packed[_M:_M + 12].reshape(4, 3), axis=1)}
+
+
+
+def check_packed(G: np.ndarray) -> None:
+    """The check of :func:`h4pin.stiffness.kernel.prepare` on packed vectors (..., _SIZE): P_i is the foot of the
+    perpendicular from A_i (m_i . u_i = 0)."""
+    m = G[..., _M:_M + 12].reshape(G.shape[:-1] + (4, 3))
+    u = G[..., _U:_U + 12].reshape(G.shape[:-1] + (4, 3))
+    if np.any(np.abs(np.einsum("...ia,...ia->...i", m, u)) > 1e-9 * np.linalg.norm(m, axis=-1)):
+        raise ParameterError("geometry.P must be the foot of the perpendicular from the forearm end A_i "
+                             "on the actuator axis (m_i . u_i = 0)")
+
+
+__all__ = ["EL_HEADER", "EL_ROW", "NO_ELEMENTS", "NO_J_N", "NO_TERMS_N", "NO_X_N", "SHAPES", "KernelResult",
+           "beam_lengths", "check_packed", "pack"]

@@ -59,6 +59,7 @@ from h4pin.description.elements import (
     AXIS_CENTRAL,
     AXIS_FOREARM,
     AXIS_Z,
+    FORM_BEAM_BENDING,
     FORM_BEAM_TORSION,
     FORM_COUPLE,
     FORM_COUPLE_AXIAL,
@@ -162,6 +163,12 @@ _XROWS = 39
 def _max(a, b):
     """numba's ``max(a, b)`` for floats (``b if b > a else a``) as a select the vectoriser takes."""
     return b if b > a else a
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cross_t(ax, ay, az, bx, by, bz):
+    """(a x b) as a tuple."""
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -396,6 +403,19 @@ def _matrix(G, nl, S, M, Bk):
             Bk[_RM, i, 3, l] = nz if k == 1 else 0.0
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _c3(i, x, p, y, q, z, r):
+    """(x p - y q + z r) i: an entry of :func:`_inv4`, a 3 x 3 cofactor (a row's entries and 2 x 2
+    minors) over the determinant (i its signed inverse)."""
+    return (x * p - y * q + z * r) * i
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _column(Z, c, l, z0, z1, z2, z3):
+    """Column c of lane l of Z (4, 4, LANES) = (z0, z1, z2, z3)."""
+    Z[0, c, l], Z[1, c, l], Z[2, c, l], Z[3, c, l] = z0, z1, z2, z3
+
+
 @njit(**_STAGE)
 def _inv4(nl, Bk, src, dst, R):
     """Bk[dst] = Bk[src]^-1 (4 x 4 per lane) by the adjugate over the determinant, from the 2 x 2
@@ -415,22 +435,14 @@ def _inv4(nl, Bk, src, dst, R):
         bad = not (det != 0.0 and abs(det) < np.inf)
         R[_ZERO, l] = 1.0 if bad else R[_ZERO, l]
         i = 1.0 / det
-        Z[0, 0, l] = (a11 * c5 - a12 * c4 + a13 * c3) * i
-        Z[0, 1, l] = (-a01 * c5 + a02 * c4 - a03 * c3) * i
-        Z[0, 2, l] = (a31 * s5 - a32 * s4 + a33 * s3) * i
-        Z[0, 3, l] = (-a21 * s5 + a22 * s4 - a23 * s3) * i
-        Z[1, 0, l] = (-a10 * c5 + a12 * c2 - a13 * c1) * i
-        Z[1, 1, l] = (a00 * c5 - a02 * c2 + a03 * c1) * i
-        Z[1, 2, l] = (-a30 * s5 + a32 * s2 - a33 * s1) * i
-        Z[1, 3, l] = (a20 * s5 - a22 * s2 + a23 * s1) * i
-        Z[2, 0, l] = (a10 * c4 - a11 * c2 + a13 * c0) * i
-        Z[2, 1, l] = (-a00 * c4 + a01 * c2 - a03 * c0) * i
-        Z[2, 2, l] = (a30 * s4 - a31 * s2 + a33 * s0) * i
-        Z[2, 3, l] = (-a20 * s4 + a21 * s2 - a23 * s0) * i
-        Z[3, 0, l] = (-a10 * c3 + a11 * c1 - a12 * c0) * i
-        Z[3, 1, l] = (a00 * c3 - a01 * c1 + a02 * c0) * i
-        Z[3, 2, l] = (-a30 * s3 + a31 * s1 - a32 * s0) * i
-        Z[3, 3, l] = (a20 * s3 - a21 * s1 + a22 * s0) * i
+        _column(Z, 0, l, _c3(i, a11, c5, a12, c4, a13, c3), _c3(-i, a10, c5, a12, c2, a13, c1),
+                _c3(i, a10, c4, a11, c2, a13, c0), _c3(-i, a10, c3, a11, c1, a12, c0))
+        _column(Z, 1, l, _c3(-i, a01, c5, a02, c4, a03, c3), _c3(i, a00, c5, a02, c2, a03, c1),
+                _c3(-i, a00, c4, a01, c2, a03, c0), _c3(i, a00, c3, a01, c1, a02, c0))
+        _column(Z, 2, l, _c3(i, a31, s5, a32, s4, a33, s3), _c3(-i, a30, s5, a32, s2, a33, s1),
+                _c3(i, a30, s4, a31, s2, a33, s0), _c3(-i, a30, s3, a31, s1, a32, s0))
+        _column(Z, 3, l, _c3(-i, a21, s5, a22, s4, a23, s3), _c3(i, a20, s5, a22, s2, a23, s1),
+                _c3(-i, a20, s4, a21, s2, a23, s0), _c3(i, a20, s3, a21, s1, a22, s0))
 
 
 @njit(**_STAGE)
@@ -600,6 +612,73 @@ def _form_weights(form, length):
     return cube, -cube, length, -length, 0.5 * length * length
 
 
+@njit(cache=True, nogil=True)
+def _normals(e):
+    """Two unit vectors n1, n2 normal to the unit e, with n1 x n2 = e."""
+    k = 0
+    if abs(e[1]) < abs(e[k]):
+        k = 1
+    if abs(e[2]) < abs(e[k]):
+        k = 2
+    n1 = np.array(_cross_t(e[0], e[1], e[2], 1.0 if k == 0 else 0.0, 1.0 if k == 1 else 0.0, 1.0 if k == 2 else 0.0))
+    n1 /= math.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
+    return n1, np.array(_cross_t(e[0], e[1], e[2], n1[0], n1[1], n1[2]))
+
+
+@njit(cache=True, nogil=True)
+def spring_count(form):
+    """How many rank-one parts :func:`site_springs` gives an element of this form."""
+    if form == FORM_FORCE or form == FORM_COUPLE:
+        return 3
+    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
+        return 2
+    return 4 if form == FORM_BEAM_BENDING else 1
+
+
+@njit(cache=True, nogil=True)
+def site_springs(form, c, length, e, cols, u):
+    """The rank-one parts (c_t, u_t) of an element's compliance C = sum c_t u_t u_t^T in its form
+    (u_t (6,) a twist [translation; rotation] at the site's point, dual to its wrench [force;
+    couple]) into cols (compliances) and u (rows); returns how many. A beam's bending in each
+    plane normal to its axis e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2`` (the cantilever
+    of :func:`h4pin.stiffness.elements.beam_compliance`). The same C as :func:`_form_weights`
+    (``tests/test_pipeline.py`` checks every form): that one for the lanes' terms, this one for
+    the natural frequencies (:mod:`h4pin.stiffness.frequencies`), which need the springs."""
+    n1, n2 = _normals(e)
+    rot = form == FORM_COUPLE or form == FORM_COUPLE_NORMAL or form == FORM_COUPLE_AXIAL
+    off = 3 if rot else 0
+    if form == FORM_FORCE or form == FORM_COUPLE:
+        for a in range(3):
+            u[a, :] = 0.0
+            u[a, off + a] = 1.0
+            cols[a] = c
+        return 3
+    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
+        for a in range(2):
+            u[a, :] = 0.0
+            u[a, off:off + 3] = n1 if a == 0 else n2
+            cols[a] = c
+        return 2
+    if form == FORM_FORCE_AXIAL or form == FORM_COUPLE_AXIAL:
+        u[0, :] = 0.0
+        u[0, off:off + 3] = e
+        cols[0] = c
+        return 1
+    if form == FORM_BEAM_TORSION:
+        u[0, :] = 0.0
+        u[0, 3:] = e
+        cols[0] = c * length
+        return 1
+    k = 1.5 / length  # FORM_BEAM_BENDING
+    u[0, :3], u[0, 3:] = n1, k * n2
+    u[1, :3], u[1, 3:] = 0.0, n2
+    u[2, :3], u[2, 3:] = n2, -k * n1
+    u[3, :3], u[3, 3:] = 0.0, n1
+    cols[0] = cols[2] = c * length ** 3 / 3.0
+    cols[1] = cols[3] = c * length / 4.0
+    return 4
+
+
 @njit(**_STAGE)
 def _element_kind(G, EG, row, nl, S, X, E):
     """Add the bar-space compliance of one element kind (row ``row`` of the element table EG,
@@ -701,6 +780,15 @@ def _element_term(G, EG, nl, S, X, E, Y, Z, kind):  # pragma: no cover - compile
                 E[a, c, l] = E[c, a, l]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _loaded(model, a, c):
+    """For entry (a, c) of K: the factor of the actuator and bending terms (the paper's model
+    loads them with F_x, F_y, F_z and T_z alone, eq. 30; the consistent model with every
+    component) and the upper-triangle entry (i, j) that holds it."""
+    load = 1.0 if (model == CONSISTENT or c < 3 or c == 5) else 0.0
+    return (load, a, c) if a <= c else (load, c, a)
+
+
 @njit(**_STAGE)
 def _assemble(G, model, nl, F, Y, U, KB, TB, want_terms):
     """K of eq. 30 into KB (8, 8, LANES) from the factors F, with ``want_terms`` the four terms
@@ -726,21 +814,16 @@ def _assemble(G, model, nl, F, Y, U, KB, TB, want_terms):
                         t3 += F[_YS + 8 * a + n, l] * Y[c, n, l]
                     U[0, a, c, l] = cc0 * g0 + cc1 * g1 + cc2 * g2 + cc3 * g3
                     U[1, a, c, l] = cb0 * g0 + cb1 * g1 + cb2 * g2 + cb3 * g3
-                    U[2, a, c, l] = t2
-                    U[3, a, c, l] = t3
+                    U[2, a, c, l], U[3, a, c, l] = t2, t3
         for a in range(8):
             for c in range(8):
-                load = 1.0 if (model == CONSISTENT or c < 3 or c == 5) else 0.0
-                i, j = (a, c) if a <= c else (c, a)
+                load, i, j = _loaded(model, a, c)
                 for l in range(nl):
                     t0 = load * U[0, i, j, l]
                     t1 = load * U[1, i, j, l]
                     t2 = U[2, i, j, l]
                     t3 = U[3, i, j, l]
-                    TB[0, a, c, l] = t0
-                    TB[1, a, c, l] = t1
-                    TB[2, a, c, l] = t2
-                    TB[3, a, c, l] = t3
+                    TB[0, a, c, l], TB[1, a, c, l], TB[2, a, c, l], TB[3, a, c, l] = t0, t1, t2, t3
                     KB[a, c, l] = t0 + t1 + t2 + t3
         return
     for a in range(8):
@@ -753,12 +836,10 @@ def _assemble(G, model, nl, F, Y, U, KB, TB, want_terms):
                     rest += F[_TU + 4 * a + i, l] * F[_TV + 4 * c + i, l]
                 for n in range(8):
                     rest += F[_YS + 8 * a + n, l] * Y[c, n, l]
-                U[0, a, c, l] = act
-                U[1, a, c, l] = rest
+                U[0, a, c, l], U[1, a, c, l] = act, rest
     for a in range(8):
         for c in range(8):
-            load = 1.0 if (model == CONSISTENT or c < 3 or c == 5) else 0.0
-            i, j = (a, c) if a <= c else (c, a)
+            load, i, j = _loaded(model, a, c)
             for l in range(nl):
                 KB[a, c, l] = load * U[0, i, j, l] + U[1, i, j, l]
 
@@ -907,7 +988,7 @@ _JIT = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
 #: 4), cond (N,), status (N,) int8; with ``want_terms`` the terms into T (N, 4 + kinds on, 8, 8)
 #: (eq. 30's four, then one per row of the element table EG); with ``want_jac`` J of eq. 8 (rows
 #: 0, 1, 2, 5 of M1^-1 M2 M3) into J (N, 4, 4); with ``want_x`` each pose's intermediates into Xo
-#: (N, :data:`NX`) (for the natural frequencies, :mod:`h4pin.elastic.twin`); NaN where the verdict
+#: (N, :data:`NX`) (for the natural frequencies, :mod:`h4pin.stiffness.frequencies`); NaN where the verdict
 #: is not 0. G is the packed geometry (:mod:`h4pin.stiffness.packed`); model 0 ``"paper"``, 1
 #: ``"consistent"``. Blocks of :data:`LANES` lanes, a compile-time constant in every lane loop.
 run = njit(**_JIT)(_entry(LANES))

@@ -49,48 +49,31 @@ def _jacobi_t(app, aqq, apq):
     return t if theta >= 0.0 else -t
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _jacobi_pair(app, aqq, apq, apr, aqr):
+    """The Jacobi rotation of the pair (p, q) that zeroes apq (set it to 0 after): the new app,
+    aqq, apr, aqr (apr, aqr: rows p and q of the third column r) and whether it rotated (an apq
+    negligible against app and aqq is dropped without rotating)."""
+    if apq == 0.0 or apq * apq <= _TINY2 * abs(app * aqq):
+        return app, aqq, apr, aqr, False
+    t = _jacobi_t(app, aqq, apq)
+    c = 1.0 / np.sqrt(t * t + 1.0)
+    s = t * c
+    return app - t * apq, aqq + t * apq, c * apr - s * aqr, s * apr + c * aqr, True
+
+
 @njit(cache=True, nogil=True)
 def sym3_eigvals(a00, a01, a02, a11, a12, a22):
     """The eigenvalues (ascending) of the symmetric 3x3 matrix [[a00, a01, a02], [., a11, a12],
     [., ., a22]] by cyclic Jacobi rotations; any unit (that of the entries)."""
     for _ in range(MAX_SWEEPS):
-        rotated = False
-        # pair (0, 1); the third index is 2
-        if a01 != 0.0:
-            if a01 * a01 <= _TINY2 * abs(a00 * a11):
-                a01 = 0.0
-            else:
-                t = _jacobi_t(a00, a11, a01)
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                s = t * c
-                a00, a11 = a00 - t * a01, a11 + t * a01
-                a01 = 0.0
-                a02, a12 = c * a02 - s * a12, s * a02 + c * a12
-                rotated = True
-        # pair (0, 2); the third index is 1
-        if a02 != 0.0:
-            if a02 * a02 <= _TINY2 * abs(a00 * a22):
-                a02 = 0.0
-            else:
-                t = _jacobi_t(a00, a22, a02)
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                s = t * c
-                a00, a22 = a00 - t * a02, a22 + t * a02
-                a02 = 0.0
-                a01, a12 = c * a01 - s * a12, s * a01 + c * a12
-                rotated = True
-        # pair (1, 2); the third index is 0
-        if a12 != 0.0:
-            if a12 * a12 <= _TINY2 * abs(a11 * a22):
-                a12 = 0.0
-            else:
-                t = _jacobi_t(a11, a22, a12)
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                s = t * c
-                a11, a22 = a11 - t * a12, a22 + t * a12
-                a12 = 0.0
-                a01, a02 = c * a01 - s * a02, s * a01 + c * a02
-                rotated = True
+        a00, a11, a02, a12, r01 = _jacobi_pair(a00, a11, a01, a02, a12)  # pair (0, 1); third index 2
+        a01 = 0.0
+        a00, a22, a01, a12, r02 = _jacobi_pair(a00, a22, a02, a01, a12)  # pair (0, 2); third index 1
+        a02 = 0.0
+        a11, a22, a01, a02, r12 = _jacobi_pair(a11, a22, a12, a01, a02)  # pair (1, 2); third index 0
+        a12 = 0.0
+        rotated = r01 or r02 or r12
         if not rotated:
             break
     lo, mid, hi = a00, a11, a22

@@ -11,7 +11,9 @@ kernel (:mod:`h4pin.stiffness.kernel`) gives K of eq. 30, J of eq. 8 and a verdi
 * ``cond_J`` (1): 2-norm condition number of J = Jx^-1 Jq (eq. 8; mixed units m/rad, rad/rad);
 * ``cond_M1`` (1): the kernel's scaled 1-norm condition number of M1 (eq. 6);
 * ``status`` (int8): the kernel's verdict, 0 where the pose is reachable, within the joint
-  limits, bar-clear and regular (the quantities above are NaN elsewhere).
+  limits, bar-clear and regular (the quantities above are NaN elsewhere);
+* with ``frequency=True``, ``first_frequency`` (Hz): the lowest natural frequency of the elastic
+  robot (:mod:`h4pin.stiffness.frequencies`, about 30 us a pose on one core).
 
 The result is an :class:`xarray.Dataset` with dims ``(theta, z, y, x)`` and units in the
 attributes; :func:`save` writes it to NetCDF (``.nc``) or zarr (``.zarr``) atomically, and
@@ -41,7 +43,7 @@ from h4pin.description.geometry import geometry_from_params  # noqa: E402
 from h4pin.description.params import H4Params  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
 from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
-from h4pin.stiffness import kernel  # noqa: E402
+from h4pin.stiffness import frequencies, kernel, pipeline  # noqa: E402
 from h4pin.studies import _derived  # noqa: E402
 
 #: The quantities of an atlas, with their units and a description.
@@ -52,9 +54,12 @@ QUANTITIES = dict(
     cond_J=("1", "2-norm condition number of J = Jx^-1 Jq (eq. 8)"),
     cond_M1=("1", "1-norm condition number of M1 (eq. 6), rows / l_ij, rotation columns / mean bar length"),
 )
+#: The quantity an atlas adds with ``frequency=True``.
+FREQUENCY = dict(first_frequency=("Hz", "lowest natural frequency (elastic robot, URDF inertias, actuators locked)"))
 #: How :func:`plot` shows each quantity: (factor, unit label, log colour scale).
 _DISPLAY = {
     "compliance_max": (1e6, "um/N", True),
+    "first_frequency": (1.0, "Hz", False),
     "stiffness_z": (1e-6, "N/um", True),
     "isotropy": (1.0, "", False),
     "cond_J": (1.0, "", True),
@@ -131,10 +136,48 @@ def _regions(axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[in
         yield int(b), (int(t), int(k), ys, xs), poses
 
 
-def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: Any) -> None:
+def _masses(source: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mass model and configuration constants of the natural frequencies
+    (:mod:`h4pin.stiffness.frequencies`) of an :class:`h4pin.H4` or an :class:`h4pin.H4Params`."""
+    from h4pin.kinematics import pinocchio as kin
+
+    if isinstance(source, H4Params):
+        return frequencies.pack_masses_params(source)
+    if getattr(source, "geometry", None) is not None and source.geometry.ideal:
+        return (frequencies.pack_masses(source), *kin._configuration_pack(source))
+    raise ParameterError("frequency: the first natural frequency needs an h4pin.H4 whose parallelograms are exact or "
+                         f"an h4pin.H4Params (the link inertias), got {type(source).__name__}")
+
+
+def _kernel_chunks(kern: Any, parts: Any, model: str, chunk: int, masses: Any) -> Any:
+    """``(start, result, first frequency)`` of the pipeline over ``parts`` (J of eq. 8 included;
+    the first frequency, Hz, with ``masses`` from :func:`_masses`, else None). Arrays reused from
+    one chunk to the next (:func:`h4pin.stiffness.kernel.iter_compliance`)."""
+    if masses is None:
+        for start, res in kernel.iter_compliance(kern, parts, model, chunk=chunk, jacobian=True):
+            yield start, res, None
+        return
+    MP, CF, CI = masses
+    work = frequencies._work(frequencies._NY, frequencies._NS)
+    start = 0
+    for part in parts:
+        x = kernel._readonly(np.ascontiguousarray(part, dtype=float))
+        n = len(x)
+        res = kernel._empty(n, False, True)
+        inter = np.empty((n, pipeline.NX))
+        kernel._run(kern, x, kernel._model_code(model), res, False, True, inter)
+        freq, counts = np.empty((n, 1)), np.empty((n, 2), dtype=np.int64)
+        frequencies.frequencies_run(x, 0, n, res.q, res.status, inter, kern.packed, kern.elements, MP, CF, CI, freq,
+                                    counts, work)
+        yield start, res, freq[:, 0]
+        start += n
+
+
+def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: Any, masses: Any = None) -> None:
     """Run the kernel (or the numpy path of a robot) over ``regions`` (:func:`_regions`) and call
     ``write(index, region, fields)`` per block, ``fields`` the quantities of :data:`QUANTITIES`
-    and ``status`` as flat arrays (reused from one block to the next)."""
+    (and :data:`FREQUENCY` with ``masses``, :func:`_masses`) and ``status`` as flat arrays
+    (reused from one block to the next)."""
     blocks: list = []
 
     def poses():
@@ -142,10 +185,10 @@ def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: A
             blocks.append(item)
             yield item[2]
 
-    results = (kernel.iter_compliance(kern, poses(), model, chunk=chunk, jacobian=True)
-               if isinstance(kern, kernel.Kernel) else _robot_chunks(kern, poses(), model))
+    results = (_kernel_chunks(kern, poses(), model, chunk, masses) if isinstance(kern, kernel.Kernel)
+               else ((s, r, None) for s, r in _robot_chunks(kern, poses(), model)))
     buf = {q: np.empty(0) for q in ("compliance_max", "isotropy", "stiffness_z", "cond_J")}
-    for _, res in results:
+    for _, res, first in results:
         b, region, _ = blocks.pop(0)
         m = len(res.status)
         if len(buf["cond_J"]) < m:
@@ -155,12 +198,15 @@ def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: A
                               f["compliance_max"], f["isotropy"], f["stiffness_z"], f["cond_J"])
         f["cond_M1"] = res.condition
         f["status"] = res.status
+        if first is not None:
+            f["first_frequency"] = first
         write(b, region, f)
         bar.update(m)
 
 
 def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
-          chunk: int = kernel.CHUNK, progress: bool = True, out: str | Path | None = None) -> xr.Dataset:
+          chunk: int = kernel.CHUNK, progress: bool = True, out: str | Path | None = None,
+          frequency: bool = False) -> xr.Dataset:
     """The atlas over the grid ``theta x z x y x`` (1-D coordinates in m and rad).
 
     Args:
@@ -176,21 +222,24 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             resumes from the blocks it finished (:func:`stream`), and the returned Dataset is
             the store opened lazily (dask arrays). A ``.nc`` path is computed in memory and
             saved (:func:`save`).
+        frequency: Also the first natural frequency (:data:`FREQUENCY`; a robot whose
+            parallelograms are exact, or an H4Params: :mod:`h4pin.stiffness.frequencies`).
 
     Returns:
-        An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` and ``status``, dims
-        ``(theta, z, y, x)``.
+        An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` (and
+        :data:`FREQUENCY`) and ``status``, dims ``(theta, z, y, x)``.
     """
     if out is not None and Path(out).suffix == ".zarr":
-        return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress)
+        return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress, frequency=frequency)
     if out is not None:
         check_out(out)
     kern, name = _geometry(source)
+    masses = _masses(source) if frequency else None
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
     block, grid = _layout(shape, chunk)
     check_memory(int(np.prod(shape)))
-    data = {q: np.full(shape, np.nan) for q in QUANTITIES}
+    data = {q: np.full(shape, np.nan) for q in _quantities(frequency)}
     data["status"] = np.empty(shape, dtype=np.int8)
 
     def write(b, region, fields):
@@ -199,7 +248,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             v[t, k, ys, xs] = fields[q].reshape(ys.stop - ys.start, xs.stop - xs.start)
 
     with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress) as bar:
-        _compute(kern, _regions(axes, block, grid, range(int(np.prod(grid)))), model, chunk, write, bar)
+        _compute(kern, _regions(axes, block, grid, range(int(np.prod(grid)))), model, chunk, write, bar, masses)
     ds = _dataset(axes, data, model, name)
     if out is not None:
         save(ds, out)
@@ -210,10 +259,15 @@ def _axes(x: Any, y: Any, z: Any, theta: Any) -> dict[str, np.ndarray]:
     return {"theta": _axis("theta", theta), "z": _axis("z", z), "y": _axis("y", y), "x": _axis("x", x)}
 
 
+def _quantities(frequency: bool) -> dict[str, tuple[str, str]]:
+    return {**QUANTITIES, **FREQUENCY} if frequency else QUANTITIES
+
+
 def _dataset(axes: dict[str, np.ndarray], data: dict[str, Any], model: str, name: str) -> xr.Dataset:
     """The atlas Dataset of the arrays ``data`` (numpy, or dask for a store's template)."""
     dims = tuple(axes)
-    out = {q: (dims, data[q], {"units": QUANTITIES[q][0], "long_name": QUANTITIES[q][1]}) for q in QUANTITIES}
+    known = {**QUANTITIES, **FREQUENCY}
+    out = {q: (dims, data[q], {"units": known[q][0], "long_name": known[q][1]}) for q in known if q in data}
     out["status"] = (dims, data["status"], {
         "units": "1", "long_name": "verdict (h4pin.verdicts)",
         "flag_values": np.arange(len(verdicts.STATUS_NAMES), dtype=np.int8),
@@ -239,7 +293,8 @@ def partial_path(path: str | Path) -> Path:
     return path.parent / f".{path.name}.{PARTIAL_TAG}"
 
 
-def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tuple[int, ...]) -> str:
+def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tuple[int, ...],
+                 masses: Any = None) -> str:
     """What fixes the numbers of a streamed atlas: the robot (packed kernel geometry and element
     table, or the URDF and elements of a robot on the numpy path), the grid, the model and the
     blocks."""
@@ -253,6 +308,8 @@ def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tupl
     for k, v in axes.items():
         h.update(k.encode() + np.ascontiguousarray(v, dtype="<f8").tobytes())
     h.update(f"{model} {block}".encode())
+    if masses is not None:
+        h.update(b"".join(np.ascontiguousarray(a).tobytes() for a in masses))
     return h.hexdigest()
 
 
@@ -309,7 +366,7 @@ def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> 
 
 
 def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
-           out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True) -> xr.Dataset:
+           out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True, frequency: bool = False) -> xr.Dataset:
     """The atlas of :func:`atlas`, streamed into the zarr store ``out`` with memory constant in
     the number of poses (one block of at most ``chunk`` poses, about 700 bytes a pose).
 
@@ -331,21 +388,22 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     if path.suffix != ".zarr":
         raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
     kern, name = _geometry(source)
+    masses = _masses(source) if frequency else None
     kernel._model_code(model)
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
     block, grid = _layout(shape, chunk)
     n_blocks = int(np.prod(grid))
-    lazy = {q: da.full(shape, np.nan, chunks=block) for q in QUANTITIES}
+    lazy = {q: da.full(shape, np.nan, chunks=block) for q in _quantities(frequency)}
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
     template = _dataset(axes, lazy, model, name)
     clean_stale(path)
-    group, fd = _open_partial(path, template, _fingerprint(kern, axes, model, block), n_blocks)
+    group, fd = _open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
     try:
         done = group[_DONE]
         flags = done[:]
         todo = np.flatnonzero(~flags)
-        arrays = {q: group[q] for q in (*QUANTITIES, "status")}
+        arrays = {q: group[q] for q in (*_quantities(frequency), "status")}
 
         def write(b, region, fields):
             t, k, ys, xs = region
@@ -357,7 +415,7 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
 
         with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress,
                   initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
-            _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar)
+            _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar, masses)
         partial = partial_path(path)
         shutil.rmtree(partial / _DONE)
         make_readable(partial)
@@ -483,7 +541,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
     # Only the panels' slices are read (a streamed atlas is a lazily opened store).
     status = {s: ds.status.isel(theta=s[0], z=s[1]).values for s in slices}
     written = []
-    for q in (*QUANTITIES, "status"):
+    for q in (*(q for q in (*QUANTITIES, *FREQUENCY) if q in ds), "status"):
         fig = Figure(figsize=(4.2 * len(slices) + 1.0, 4.0), layout="constrained")
         axs = fig.subplots(1, len(slices), squeeze=False)[0]
         if q == "status":
@@ -514,7 +572,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
             label = "status: " + ", ".join(f"{c} {s}" for c, s in enumerate(verdicts.STATUS_NAMES))
         cb = fig.colorbar(mesh, ax=list(axs), shrink=0.9, extend="neither" if q == "status" else "both")
         cb.set_label(label, fontsize=8)
-        fig.suptitle(f"H4 atlas ({ds.attrs.get('model', '')} model): {QUANTITIES.get(q, ('', 'verdict'))[1]}",
+        fig.suptitle(f"H4 atlas ({ds.attrs.get('model', '')} model): {_quantities(True).get(q, ('', 'verdict'))[1]}",
                      fontsize=9)
         target = folder / f"{prefix}{q}.png"
         written.append(save_figure(fig, target, dpi=110))

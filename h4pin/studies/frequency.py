@@ -10,11 +10,10 @@
   pose of each design of a sweep (:mod:`h4pin.studies.sweep`), and the designs for which no
   other one has both a higher first frequency and a larger workspace.
 
-Cost: one :func:`h4pin.modes` per pose, about 2.5 ms on one core (the configuration, Pinocchio's
-Jacobians and ``crba`` on the 44-dof elastic model, two SVDs and an 8-to-16-dof eigenproblem);
-the verdicts come first from the compiled kernel, so refused poses cost nothing. A design adds
-the URDF generation, the elastic model and its Pinocchio data, about 40 ms. Both are timed by
-``scripts/bench.py`` (``--modes``).
+Cost: the compiled twin of :func:`h4pin.modes` (:mod:`h4pin.stiffness.frequencies`), about 30 us a
+pose on one core (the Pinocchio route it equals takes 2.5 ms); a design of a sweep adds its mass
+model from its parameters, without a URDF (:func:`h4pin.description.urdf.mass_model`), about 4 ms
+(``Spec.frequency`` of :mod:`h4pin.studies.sweep`). Both are timed by ``scripts/bench.py``.
 """
 
 from __future__ import annotations
@@ -26,37 +25,28 @@ import numpy as np
 from tqdm import tqdm
 
 from h4pin import verdicts
-from h4pin.elastic import Payload, elastic_model, modes
+from h4pin.elastic import Payload
 from h4pin.errors import H4Error, ParameterError
 from h4pin.files import save_figure
 from h4pin.kinematics.closed_form import as_poses, centre_pose
-from h4pin.stiffness.api import compliance
+from h4pin.vibration import modes
 
 
-def first_frequency(robot: Any, poses: np.ndarray, payload: Payload | None = None, *,
-                    progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest natural frequency (Hz) at each pose, and the verdicts.
+def first_frequency(robot: Any, poses: np.ndarray, payload: Payload | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest natural frequency (Hz) at each pose, and the verdicts (:func:`h4pin.modes`).
 
     Args:
-        robot: an :class:`h4pin.H4` (its elastic model is built once here).
+        robot: an :class:`h4pin.H4`.
         poses: (N, 4) or (4,) [x, y, z, theta] (m, rad).
         payload: an :class:`h4pin.Payload` on the plate, or None.
-        progress: show a progress bar.
 
     Returns:
         (frequency (N,) Hz, NaN where status is not 0; status (N,) int8, :mod:`h4pin.verdicts`).
     """
     x = as_poses(poses)
     x = x[None] if x.ndim == 1 else x
-    status = compliance(robot, x, "consistent", on_error="nan").status.astype(np.int8)
-    out = np.full(len(x), np.nan)
-    em = elastic_model(robot)
-    for k in tqdm(np.flatnonzero(status == verdicts.OK), desc="modes", unit="pose", disable=not progress):
-        try:
-            out[k] = modes(em, x[k], payload).frequencies[0]
-        except H4Error:  # a pose the elastic model finds singular: as the verdict would say
-            status[k] = verdicts.SINGULAR
-    return out, status
+    out = modes(robot, x, payload)
+    return out.first.copy(), out.status.astype(np.int8)
 
 
 def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float = 0.0,
@@ -74,7 +64,7 @@ def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float 
     zc = float(centre_pose(h4)[2]) if z is None else float(z)
     gy, gx = np.meshgrid(ys, xs, indexing="ij")
     poses = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, zc), np.full(gx.size, float(theta))], axis=1)
-    freq, status = first_frequency(h4, poses, payload, progress=progress)
+    freq, status = first_frequency(h4, poses, payload)
     shape = (len(ys), len(xs))
     return xr.Dataset(
         {"first_frequency": (("y", "x"), freq.reshape(shape), {"units": "Hz", "long_name": "first natural frequency"}),
@@ -108,67 +98,105 @@ def plot_map(ds, path: str | Path) -> Path:
 
 def design_frequencies(rows: np.ndarray, payload: Payload | None = None, *, progress: bool = True) -> np.ndarray:
     """First frequency (Hz) at the centre pose (all actuators at 45 deg) of each design, rows of
-    :func:`h4pin.studies.sweep.designs`; NaN where a design cannot be built or is singular there."""
-    from h4pin.robot import load
-    from h4pin.studies.sweep import params_of
+    :func:`h4pin.studies.sweep.designs`; NaN where a design cannot be built or is singular there.
+    Each design's mass model comes from its parameters (no URDF is written)."""
+    from h4pin.description.geometry import geometry_from_params
+    from h4pin.stiffness import frequencies, kernel, pipeline
+    from h4pin.studies.sweep import _kernels, params_of
 
     out = np.full(len(rows), np.nan)
-    for d, row in enumerate(tqdm(rows, desc="designs", unit="design", disable=not progress)):
+    work = frequencies._work(frequencies._NY, frequencies._NS)
+    inter = np.empty((1, pipeline.NX))
+    for d, kern in enumerate(tqdm(_kernels(rows), desc="designs", unit="design", disable=not progress)):
+        if kern is None:
+            continue
+        params = params_of(rows[d])
         try:
-            h4 = load(params_of(row))
-            out[d] = modes(elastic_model(h4), centre_pose(h4), payload).frequencies[0]
+            x = kernel._readonly(centre_pose(geometry_from_params(params))[None])
         except H4Error:
             continue
+        res = kernel._run(kern, x, pipeline.CONSISTENT, kernel._empty(1, False, False), False, False, inter)
+        MP, CF, CI = frequencies.pack_masses_params(params, payload)
+        freq, counts = np.empty((1, 1)), np.empty((1, 2), dtype=np.int64)
+        frequencies.frequencies_run(x, 0, 1, res.q, res.status, inter, kern.packed, kern.elements, MP, CF, CI,
+                                    freq, counts, work)
+        out[d] = freq[0, 0]
     return out
 
 
-def frequency_pareto(res: dict[str, np.ndarray], rows: np.ndarray, payload: Payload | None = None, *,
+def frequency_pareto(res: dict[str, np.ndarray], rows: np.ndarray | None = None, payload: Payload | None = None, *,
                      limit: int | None = 200, progress: bool = True) -> dict[str, np.ndarray]:
-    """The first frequency of a sweep's designs that reach the whole task box (at most ``limit``,
-    the stiffest first), and the Pareto front of (first frequency, workspace volume).
+    """The designs of a sweep that reach the whole task box, their first frequency, workspace
+    volume and worst compliance, and the Pareto front of the three (first frequency and volume
+    up, worst compliance down).
 
     Args:
-        res: a sweep's results (:func:`h4pin.studies.sweep.load`): ``reach_all``, ``worst``, ``volume``.
-        rows: the sweep's designs (:func:`h4pin.studies.sweep.designs`).
+        res: a sweep's results (:func:`h4pin.studies.sweep.load`): ``reach_all``, ``worst``,
+            ``volume`` and, from a sweep with ``Spec.frequency``, ``first_frequency`` (the lowest
+            over the task box's centre and corners: every design that reaches the box is used).
+        rows: the sweep's designs, for a sweep without frequencies: the first frequency at the
+            centre pose of at most ``limit`` designs (the stiffest first), :func:`design_frequencies`.
+        payload: for ``rows`` (a sweep with frequencies has its own).
 
     Returns:
-        ``design`` (indices), ``frequency`` (Hz), ``volume`` (m^3), ``front`` (indices into
-        ``design`` of the front, by rising frequency).
+        ``design`` (indices), ``frequency`` (Hz), ``volume`` (m^3), ``worst`` (m/N), ``front``
+        (indices into ``design`` of the front, by rising frequency).
     """
     cand = np.flatnonzero(res["reach_all"] & np.isfinite(res["worst"]))
-    cand = cand[np.argsort(res["worst"][cand], kind="stable")]
-    if limit is not None:
-        cand = cand[:limit]
-    freq = design_frequencies(rows[cand], payload, progress=progress)
-    vol = res["volume"][cand]
-    return {"design": cand, "frequency": freq, "volume": vol, "front": pareto_indices(freq, vol)}
+    swept = "first_frequency" in res and np.any(np.isfinite(res["first_frequency"][cand]))
+    if swept:
+        cand = cand[np.isfinite(res["first_frequency"][cand])]
+        freq = res["first_frequency"][cand]
+    else:
+        if rows is None:
+            raise ParameterError("rows: a sweep without frequencies (Spec.frequency) needs its designs")
+        cand = cand[np.argsort(res["worst"][cand], kind="stable")]
+        if limit is not None:
+            cand = cand[:limit]
+        freq = design_frequencies(rows[cand], payload, progress=progress)
+    vol, worst = res["volume"][cand], res["worst"][cand]
+    return {"design": cand, "frequency": freq, "volume": vol, "worst": worst,
+            "front": pareto_indices(freq, vol, worst)}
 
 
-def pareto_indices(freq: np.ndarray, vol: np.ndarray) -> np.ndarray:
-    """Indices of the points (finite ones) that no other has both a higher-or-equal frequency and
-    a higher-or-equal volume, one of them strictly; by rising frequency."""
-    ok = np.flatnonzero(np.isfinite(freq) & np.isfinite(vol))
-    order = ok[np.lexsort((-vol[ok], -freq[ok]))]  # highest frequency first, then largest volume
-    front, best = [], -np.inf
-    for i in order:
-        if vol[i] > best:
-            front.append(i)
-            best = vol[i]
-    return np.array(front[::-1], dtype=int)
+def pareto_indices(freq: np.ndarray, vol: np.ndarray, worst: np.ndarray | None = None) -> np.ndarray:
+    """Indices of the points (finite ones) that no other dominates: at least as high a frequency,
+    as large a volume (and, when given, as small a worst compliance), one of them strictly; by
+    rising frequency."""
+    cost = -np.stack([freq, vol] + ([] if worst is None else [-worst]), axis=1)  # all to minimise
+    ok = np.flatnonzero(np.all(np.isfinite(cost), axis=1))
+    order = ok[np.lexsort(cost[ok].T[::-1])]  # by the first objective, then the others
+    front: list[int] = []
+    kept = np.empty((0, cost.shape[1]))
+    for i in order:  # a point is dominated only by one before it in this order
+        c = cost[i]
+        if kept.size and np.any(np.all(kept <= c, axis=1) & np.any(kept < c, axis=1)):
+            continue
+        if kept.size and np.any(np.all(kept == c, axis=1)):
+            continue
+        front.append(i)
+        kept = np.vstack([kept, c])
+    return np.array(sorted(front, key=lambda i: freq[i]), dtype=int)
 
 
 def plot_frequency_pareto(par: dict[str, np.ndarray], path: str | Path) -> Path:
-    """First frequency against workspace volume, the front highlighted (PNG)."""
+    """First frequency against workspace volume, coloured by the worst compliance over the task
+    box, the Pareto front of the three highlighted (PNG)."""
+    from matplotlib.colors import LogNorm
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(5.6, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.2, 4.4), layout="constrained")
     ax = fig.subplots()
-    ax.scatter(par["volume"] * 1e3, par["frequency"], s=10, c="0.6", label="designs reaching the task box")
+    w = par["worst"] * 1e6
+    sc = ax.scatter(par["volume"] * 1e3, par["frequency"], s=4, c=w, cmap="viridis_r", norm=LogNorm(w.min(), w.max()),
+                    label=f"{len(w):,} designs reaching the task box", rasterized=True)
     f = par["front"]
-    ax.plot(par["volume"][f] * 1e3, par["frequency"][f], "o-", c="C3", label="Pareto front")
+    ax.scatter(par["volume"][f] * 1e3, par["frequency"][f], s=14, facecolors="none", edgecolors="C3", linewidths=0.8,
+               label=f"Pareto front ({len(f)}: frequency, volume, compliance)")
+    fig.colorbar(sc, ax=ax).set_label("worst compliance over the task box [um/N]")
     ax.set_xlabel("workspace volume [dm^3]")
     ax.set_ylabel("first natural frequency [Hz]")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="lower left")
     return save_figure(fig, path, dpi=110)
 
 

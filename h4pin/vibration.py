@@ -1,0 +1,128 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Natural frequencies and modes of the elastic H4 (``h4pin.modes``): the compiled twin
+(:mod:`h4pin.stiffness.frequencies`) for robots whose parallelograms are exact, once compiled, or
+the Pinocchio route (:func:`h4pin.elastic.modes.modes`, ``crba`` on the elastic model) for any
+robot and for the mode shapes. The two agree to round-off (``tests/test_frequencies.py``)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from h4pin import verdicts
+from h4pin.elastic.h4 import ElasticH4
+from h4pin.elastic.modes import Modes, Payload
+from h4pin.elastic.modes import modes as pinocchio_modes
+from h4pin.errors import ParameterError
+from h4pin.kinematics.closed_form import as_poses
+from h4pin.robot import H4
+from h4pin.stiffness import kernel
+from h4pin.stiffness.frequencies import FREQUENCIES, frequencies
+
+
+def _robot(robot: Any):
+    """The :class:`h4pin.H4` of ``robot`` (an H4 or its :class:`~h4pin.elastic.h4.ElasticH4`)."""
+    if isinstance(robot, ElasticH4):
+        return robot.robot
+    if isinstance(robot, H4):
+        return robot
+    raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {type(robot).__name__}")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Frequencies:
+    """Natural frequencies at many poses (:func:`modes` with (N, 4) poses).
+
+    Attributes:
+        frequencies: (N, m) Hz, ascending per pose; NaN past a pose's massive count and where its
+            status is not 0.
+        massive: (N,) how many massive directions each pose has (its frequencies).
+        status: (N,) int8 verdicts (:mod:`h4pin.verdicts`; 0: computed).
+        poses: (N, 4) [x, y, z, theta] (m, rad).
+        payload: the payload, or None.
+    """
+
+    frequencies: np.ndarray
+    massive: np.ndarray
+    status: np.ndarray
+    poses: np.ndarray
+    payload: Any
+
+    @property
+    def first(self) -> np.ndarray:
+        """(N,) the lowest natural frequency of each pose (Hz; NaN where its status is not 0)."""
+        return self.frequencies[:, 0]
+
+
+METHODS = ("auto", "compiled", "pinocchio")
+
+
+def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "auto", link_inertias: bool = True,
+          data: Any = None):
+    """Natural frequencies (and mode shapes) of the elastic H4 at a pose or at many.
+
+    The elastic H4 of :func:`h4pin.elastic_model` (every compliance a spring, the robot's own
+    elements; actuators locked; the URDF's link inertias; an optional rigid payload on the
+    central bar; massless motions condensed): :mod:`h4pin.stiffness.frequencies` (compiled,
+    its module docstring) or :func:`h4pin.elastic.modes.modes` (Pinocchio's ``crba`` on the
+    elastic model), which agree to round-off (``tests/test_frequencies.py``).
+
+    Args:
+        robot: an :class:`h4pin.H4` or its :class:`h4pin.ElasticH4`.
+        pose: (4,) [x, y, z, theta] (m, rad), or (N, 4).
+        payload: an :class:`h4pin.Payload` on the central bar, or None.
+        method: ``"auto"`` (the compiled twin once compiled, for a robot whose parallelograms are
+            exact; else Pinocchio), ``"compiled"`` or ``"pinocchio"``.
+        link_inertias: the URDF's link inertias (True) or massless links (only the payload has mass).
+        data: a ``pin.Data`` of the elastic model for the Pinocchio route.
+
+    Returns:
+        One pose: :class:`h4pin.Modes` (its shapes computed by the Pinocchio route on first
+        access when the twin gave the frequencies). (N, 4): :class:`Frequencies` (refused poses
+        NaN, with their status).
+
+    Raises:
+        PoseError, UnreachablePoseError (and subclasses), UnrestrainedMotionError: one pose the
+        robot cannot take or that is singular (a batch gives NaN and the status instead).
+        ParameterError: a bad method, payload or robot.
+    """
+
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+    if payload is not None and not isinstance(payload, Payload):
+        raise ParameterError(f"payload must be an h4pin.Payload or None, got {type(payload).__name__}")
+    h4 = _robot(robot)
+    x = as_poses(pose).copy()
+    x.setflags(write=False)
+    compiled = h4.geometry.ideal and method != "pinocchio" and (
+        method == "compiled" or (FREQUENCIES.ready and kernel.ONE.ready and kernel.BATCH.ready))
+    if method == "compiled" and not h4.geometry.ideal:
+        raise ParameterError("the compiled twin takes robots whose parallelograms are exact; use method='pinocchio'")
+    if x.ndim == 1:
+        if compiled:
+            freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
+            if status[0] == verdicts.OK:
+                m = int(counts[0, 0])
+                f = freq[0, :m].copy()
+                f.setflags(write=False)
+                return Modes(f, x, payload, int(counts[0, 1]) - m, lambda: pinocchio_modes(
+                    robot, x, payload, link_inertias=link_inertias, data=data)._shapes())
+        return pinocchio_modes(robot, x, payload, link_inertias=link_inertias, data=data)  # its typed error
+    if compiled:
+        freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
+        return Frequencies(freq, counts[:, 0].copy(), status, x, payload)
+    from h4pin.stiffness.api import compliance
+
+    status = compliance(h4, x, "consistent", on_error="nan").status.astype(np.int8)
+    rows = [pinocchio_modes(robot, xk, payload, link_inertias=link_inertias, data=data).frequencies if s == 0
+            else np.zeros(0) for xk, s in zip(x, status, strict=True)]
+    width = max([len(r) for r in rows] + [1])
+    freq = np.full((len(x), width), np.nan)
+    for k, r in enumerate(rows):
+        freq[k, :len(r)] = r
+    return Frequencies(freq, np.array([len(r) for r in rows]), status, x, payload)
+
+
+__all__ = ["METHODS", "Frequencies", "modes"]
