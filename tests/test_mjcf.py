@@ -93,9 +93,13 @@ def test_shipped_file_is_current(robot):
     for field in ("body_parentid", "jnt_type", "eq_type", "eq_obj1id", "eq_obj2id", "actuator_trnid", "geom_type"):
         np.testing.assert_array_equal(getattr(fresh, field), getattr(shipped, field), err_msg=field)
     for field in ("body_pos", "body_quat", "body_mass", "body_ipos", "body_inertia", "jnt_axis", "jnt_range",
-                  "actuator_ctrlrange", "geom_size", "geom_pos", "site_pos", "key_qpos", "eq_solref", "cam_pos"):
+                  "actuator_ctrlrange", "geom_size", "geom_pos", "site_pos", "eq_solref", "cam_pos"):
         np.testing.assert_allclose(getattr(fresh, field), getattr(shipped, field), rtol=1e-12, atol=1e-15,
                                    err_msg=field)
+    # The keyframe is an assembled configuration: closed to 1e-10 by an iterative solve whose last
+    # bits depend on the CPU's and the library's rounding, so its zeros agree to rounding (1e-15 rad
+    # of 0.79 rad) rather than exactly.
+    np.testing.assert_allclose(fresh.key_qpos, shipped.key_qpos, rtol=0, atol=1e-12, err_msg="key_qpos")
 
 
 def test_tree_joints_closures_and_motors(robot):

@@ -121,6 +121,7 @@ def test_sdist_carries_the_repository(unpacked_sdist):
     assert "License-Expression: Apache-2.0" in (unpacked_sdist / "PKG-INFO").read_text()
 
 
+@pytest.mark.slow  # the unpacked sdist compiles in its own, empty cache (a minute)
 def test_scripts_work_from_the_unpacked_sdist(unpacked_sdist, tmp_path):
     top = unpacked_sdist
     check = run([str(top / "scripts" / "generate_urdf.py"), "--check"], tmp_path, top)

@@ -280,8 +280,9 @@ def test_cli_html_must_name_a_file_in_an_existing_folder(tmp_path, where):
 
 def start_view(*args: str) -> tuple[subprocess.Popen, int]:
     """``h4pin view`` serving a scene; returns the command and its meshcat server's pid."""
-    proc = subprocess.Popen([sys.executable, "-m", "h4pin.cli", "view", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    # faulthandler: a command that does not stop is sent SIGABRT and its stacks read (see _wait)
+    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "h4pin.cli", "view", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     deadline = time.monotonic() + 60
     line = ""
     while "meshcat: http" not in line and time.monotonic() < deadline and proc.poll() is None:
@@ -306,13 +307,26 @@ def test_cli_server_stops_on_signals(sig, code, host):
         assert {address for address, _ in ports} == {host or "127.0.0.1", "127.0.0.1"}, ports
         assert len(ports) == 2  # the page (on --host) and meshcat's command socket (always local)
         proc.send_signal(sig)
-        assert proc.wait(timeout=30) == code
+        assert _wait(proc, 30) == code
         assert "stopped" in proc.stdout.read()
         assert not alive(server), "the meshcat server outlived the command"
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def _wait(proc: subprocess.Popen, timeout: float) -> int:
+    """The command's exit status; if it is still running after ``timeout`` s, a failure quoting
+    its signal masks and every thread's stack (faulthandler on SIGABRT)."""
+    try:
+        return proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        with open(f"/proc/{proc.pid}/status") as fh:
+            masks = [line.strip() for line in fh if line.startswith(("SigBlk", "SigIgn", "SigCgt"))]
+        proc.send_signal(signal.SIGABRT)
+        _, err = proc.communicate(timeout=30)
+        pytest.fail(f"h4pin view did not stop within {timeout} s of the signal; {masks}; stderr:\n{err}")
 
 
 def test_server_stops_when_the_viewer_is_killed():
