@@ -5,7 +5,7 @@ asserted by the tests).
 
 Rows: the numpy batch path (eq. 30 with the inverse geometry), the compiled pipeline
 (:mod:`h4pin.stiffness.pipeline`: batch on 1 and 2 threads, one pose, with terms, a robot with all
-11 element kinds), the Pinocchio route, a straightforward per-pose numpy implementation of eq. 30
+12 element kinds), the Pinocchio route, a straightforward per-pose numpy implementation of eq. 30
 (loops, np.cross, explicit inverses: what one writes first), the two validation routes, the
 natural frequencies (the compiled twin and the Pinocchio route), an atlas with the first
 frequency; optionally a 1e7-pose streaming run (``--big``), the Dask overhead per task
@@ -120,8 +120,8 @@ PREVIOUS = {
     "h4pin.compliance(h4, poses): default batch path, 2 threads": 0.464,
     "h4pin.compliance(h4, pose): default one-pose path": 6.7,
     "h4pin.compliance(h4, pose, method='pinocchio')": 35.7,
-    "h4pin.compliance, robot with all 11 elements, batch": 3451.0,
-    "h4pin.compliance, robot with all 11 elements, one pose": 3335.0,
+    "h4pin.compliance, robot with every element kind, batch": 3451.0,
+    "h4pin.compliance, robot with every element kind, one pose": 3335.0,
     "atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)": 1.10,
     "naive per-pose numpy eq. 30 (loops, np.cross, inv)": 1927.0,
     "h4pin.compliance(h4, poses, terms=True): batch with terms": 0.88,
@@ -133,7 +133,7 @@ PREVIOUS = {
     "kernel, one pose (Kernel call, incl. Python overhead)": 4.0,
     "h4pin.modes(h4, pose): all frequencies, one pose": 2425.0,
     "h4pin.modes(h4, poses): batch, all frequencies": 2425.0,
-    "h4pin.modes, robot with all 11 elements, batch": 9400.0,
+    "h4pin.modes, robot with every element kind, batch": 9400.0,
     "atlas with first frequency, 1e6 poses (per pose)": 2425.0,
 }
 #: Floating-point operations of one pose (inverse geometry, verdicts including the bar interference
@@ -240,7 +240,7 @@ def kernel_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> tuple[dict[tupl
 def modes_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> dict[str, float]:
     """Seconds a pose of the natural frequencies: the compiled twin (one pose; a batch, on one
     thread, all the frequencies and the first four) and the Pinocchio route it replaces (the
-    previous release's), bare and with the 11 element kinds."""
+    previous release's), bare and with every element kind."""
     numba.set_num_threads(1)
     with_el = h4.with_elements(ILLUSTRATIVE)
     few = poses[:2000]
@@ -250,9 +250,9 @@ def modes_rows(h4: h4pin.H4, poses: np.ndarray, repeat: int) -> dict[str, float]
         "twin, one pose": best_of(repeat, lambda: [h4pin.modes(h4, x) for x in few[:500]]) / 500,
         "twin, batch, all": best_of(repeat, lambda: h4pin.modes(h4, few)) / len(few),
         "twin, batch, first four": best_of(repeat, lambda: frequencies.frequencies(h4, few, count=4)) / len(few),
-        "twin, batch, 11 elements": best_of(repeat, lambda: h4pin.modes(with_el, few[:500])) / 500,
+        "twin, batch, elements": best_of(repeat, lambda: h4pin.modes(with_el, few[:500])) / 500,
         "pinocchio, one pose": best_of(1, lambda: [h4pin.modes(h4, x, method="pinocchio") for x in few[:40]]) / 40,
-        "pinocchio, 11 elements": best_of(1, lambda: [h4pin.modes(with_el, x, method="pinocchio")
+        "pinocchio, elements": best_of(1, lambda: [h4pin.modes(with_el, x, method="pinocchio")
                                                       for x in few[:20]]) / 20,
     }
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
@@ -377,8 +377,8 @@ def main() -> None:
         ("h4pin.compliance(h4, poses): default batch path, 2 threads", t_default[2]),
         ("h4pin.compliance(h4, pose): default one-pose path", t_single),
         ("h4pin.compliance(h4, pose, method='pinocchio')", t_single_pin),
-        ("h4pin.compliance, robot with all 11 elements, batch", t_el_batch),
-        ("h4pin.compliance, robot with all 11 elements, one pose", t_el_single),
+        ("h4pin.compliance, robot with every element kind, batch", t_el_batch),
+        ("h4pin.compliance, robot with every element kind, one pose", t_el_single),
         ("  the same, numpy path (statics route per pose, as before)", t_el_numpy),
         ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t_atlas),
         ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t_naive),
@@ -399,9 +399,9 @@ def main() -> None:
         ("h4pin.modes(h4, pose): all frequencies, one pose", t_modes["twin, one pose"]),
         ("h4pin.modes(h4, poses): batch, all frequencies", t_modes["twin, batch, all"]),
         ("  the same, the first four frequencies (frequencies(count=4))", t_modes["twin, batch, first four"]),
-        ("h4pin.modes, robot with all 11 elements, batch", t_modes["twin, batch, 11 elements"]),
+        ("h4pin.modes, robot with every element kind, batch", t_modes["twin, batch, elements"]),
         ("  Pinocchio route (method='pinocchio', as before), one pose", t_modes["pinocchio, one pose"]),
-        ("  Pinocchio route, robot with all 11 elements", t_modes["pinocchio, 11 elements"]),
+        ("  Pinocchio route, robot with every element kind", t_modes["pinocchio, elements"]),
         ("atlas with first frequency, 1e6 poses (per pose)", t_fatlas),
     ]
     peak = peak_flops()
@@ -440,7 +440,7 @@ def main() -> None:
         ("  the same into out= (no page faults)",
          t_kernel["into out= paper", 1] / t_kernel["into out= paper", 2], 1.9, "x", True),
         ("one pose, h4pin.compliance", t_single * 1e6, 4.0, "us", False),
-        ("all 11 elements / elements off, batch", t_el_batch / t_el_off, 2.0, "x", False),
+        ("every element kind / elements off, batch", t_el_batch / t_el_off, 2.0, "x", False),
         ("modes, first four frequencies, 1 core", t_modes["twin, batch, first four"] * 1e6, 20.0, "us", False),
         ("terms=True batch / default batch", t_terms / t_default[2], 1.3, "x", False),
         ("default batch, memory a pose", mem_default, 600, "B", False),

@@ -87,8 +87,10 @@ def test_elastic_h4_names_its_springs_from_the_robot(proto):
     assert em.stiffness["bar_32_tension"] == pytest.approx(g.springs["Sb"][5] * g.springs["Eb"][5] / g.l[5], rel=1e-15)
     full = elastic_model(proto.with_elements(ILLUSTRATIVE))
     assert full.stiffness["bar_11_ball_A"] == pytest.approx(1 / ILLUSTRATIVE.ball_radial[0])
-    # 16 + 16 ball + 2 x (5 revolute, 5 central beam) + 4 x 5 arm + 4 x (2 shaft + 6 mount)
-    assert len(full.stiffness) == 16 + 16 + 20 + 20 + 32 == full.model.nv - proto.model.nv
+    # 16 + 16 ball + 2 x (5 revolute, 5 central beam) + 4 x 5 arm + 4 x (2 shaft + 6 mount + 2 out of plane)
+    assert len(full.stiffness) == 16 + 16 + 20 + 20 + 40 == full.model.nv - proto.model.nv
+    r, ei = g.r[0], ILLUSTRATIVE.forearm_out_EI[0]  # two Gauss points of the whole forearm
+    assert full.stiffness["forearm_1_out_1"] == full.stiffness["forearm_1_out_2"] == pytest.approx(2 * ei / r)
     # the frames keep their ids and, at a rigid pose, their places
     x = centre_pose(proto)
     d = full.model.createData()

@@ -104,7 +104,7 @@ PER_ELEMENT = Elements(revolute_radial=[1e-8, 3e-8], revolute_axial=[2e-8, 0.5e-
                           ball_radial=np.linspace(1e-8, 4.5e-8, 8), central_EI=[225.0, 400.0], central_GJ=[167.0, 90.0],
                           lateral_EI=[200.0, 250.0, 300.0, 350.0], lateral_GJ=[150.0, np.inf, 120.0, 180.0],
                           shaft_tilt=[1e-5, 2e-5, 3e-5, 4e-5], base_translation=[1e-8, 2e-8, 0.0, 3e-8],
-                          base_rotation=[1e-5, 3e-5, 2e-5, 4e-5])
+                          base_rotation=[1e-5, 3e-5, 2e-5, 4e-5], forearm_out_EI=[1120.0, 900.0, np.inf, 1500.0])
 
 
 def test_per_element_values_on_a_toleranced_robot_with_tilted_joint_axes():
@@ -138,6 +138,7 @@ def test_elements_written_in_the_urdf_give_the_same_k_as_in_python(proto, poses)
     text = to_urdf(H4Params(), "h4_with_elements", elements=PER_ELEMENT)
     assert text.count("<h4_revolute ") == 2 and text.count("<h4_ball ") == 8
     assert text.count("<h4_plate_bar ") == 3 and text.count("<h4_base ") == 4 and text.count(" shaft_tilt=") == 4
+    assert text.count(" out_EI=") == 3  # forearm 3 is rigid out of plane: not written
     assert 'GJ_2="' not in text.split('<link name="lateral_bar_1"')[1].split("</link>")[0]  # rigid: not written
     robot = load_text(text)
     assert robot.elements.allclose(PER_ELEMENT)
@@ -180,6 +181,9 @@ def load_text(text: str):
      "<h4_revolute> sits in link 'bar_42'; it belongs inside a <joint>"),
     ('<h4_plate_bar EI_1="225.0"', '<h4_ball radial="1e-8"/><h4_plate_bar EI_1="225.0"',
      "<h4_ball radial> sits in 'central_bar', which is not a bar link"),
+    ('out_EI="1500.0"', 'out_EI="0"', "forearm link 'forearm_4' (<h4_forearm out_EI>): forearm_out_EI = 0.0"),
+    ('<h4_ball radial="4.5e-08"/>', '<h4_forearm out_EI="900"/>',
+     "<h4_forearm out_EI> sits in 'bar_42', which is not a forearm link"),
 ])
 def test_non_physical_element_in_the_urdf_names_it(old, new, where):
     from h4pin import H4Params, MalformedURDFError
@@ -275,3 +279,45 @@ def test_new_elements_off_are_bitwise_eq_30(proto, poses):
     for model in ("paper", "consistent"):
         base = compliance(proto, poses[2], model)
         np.testing.assert_array_equal(compliance(proto, poses[2], model, elements=off).matrix, base.matrix)
+
+
+def test_forearm_out_of_plane_is_the_cantilever():
+    """The forearm's out-of-plane compliance: a tip force along u gives L^3/(3EI) along u and a
+    slope L^2/(2EI) about e x u; a couple about e x u, L^2/(2EI) and L/(EI); nothing in the
+    forearm's own plane. With the in-plane part (normal e x u) it is the isotropic cantilever."""
+    e = np.array([0.6, 0.8, 0.0])
+    u = np.array([0.8, -0.6, 0.0])
+    length, ei = 0.2, 1120.0
+    c = el.out_of_plane_compliance(e, u + 0.3 * e, length, ei)  # the normal is made normal to e
+    b = np.cross(e, u)
+    np.testing.assert_allclose(c @ np.r_[u, 0, 0, 0], np.r_[length**3 / (3 * ei) * u, length**2 / (2 * ei) * b],
+                               atol=1e-20)
+    np.testing.assert_allclose(c @ np.r_[0, 0, 0, b], np.r_[length**2 / (2 * ei) * u, length / ei * b], atol=1e-20)
+    for load in (np.r_[np.cross(u, e), 0, 0, 0], np.r_[e, 0, 0, 0], np.r_[0, 0, 0, u], np.r_[0, 0, 0, e]):
+        np.testing.assert_allclose(c @ load, 0.0, atol=1e-20)
+    in_plane = el.out_of_plane_compliance(e, np.cross(u, e), length, ei)
+    np.testing.assert_allclose(c + in_plane, el.beam_compliance(e, length, ei, np.inf)[0], rtol=0, atol=1e-18)
+    np.testing.assert_array_equal(el.out_of_plane_compliance(e, u, length, np.inf), 0.0)
+
+
+def test_forearm_out_of_plane_on_every_route(proto, poses):
+    """forearm_out_EI alone: the statics route equals finite differences of the deformed robot
+    (tips moved along u_i and turned), the compiled pipeline (one pose and batch) and the elastic
+    model (two Gauss-point revolutes per forearm); rigid (inf) is eq. 30 bit for bit; softer
+    forearms only add compliance."""
+    from h4pin import elastic_model
+
+    one = Elements(forearm_out_EI=[1120.0, 800.0, 1500.0, 1000.0])
+    xs = poses[:6]
+    bare = compliance(proto, xs, "consistent").matrix
+    batch = compliance(proto, xs, "consistent", elements=one).matrix
+    elastic = elastic_model(proto.with_elements(one))
+    for k, x in enumerate(xs):
+        term = el.element_terms(proto.geometry, x, one)["forearm_out_EI"]
+        assert rel(term, element_terms_fd(proto.geometry, x, one)["forearm_out_EI"]) < 1e-6
+        single = compliance(proto, x, "consistent", elements=one).matrix
+        assert rel(single - bare[k], term) < 1e-10 and rel(batch[k] - bare[k], term) < 1e-10
+        assert rel(elastic.compliance(x), single) < 1e-10
+        assert np.linalg.eigvalsh(term).min() > -1e-12 * np.abs(term).max()
+    rigid = compliance(proto, xs, "consistent", elements=Elements(forearm_out_EI=np.inf)).matrix
+    np.testing.assert_array_equal(rigid, bare)

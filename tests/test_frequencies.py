@@ -30,7 +30,7 @@ def robot(request) -> h4pin.H4:
 @pytest.mark.parametrize("payload", [None, PAYLOAD], ids=["bare", "payload"])
 def test_every_frequency_equals_the_pinocchio_route(robot, elements, payload):
     """At least 50 poses with cond(M1) < 1e4: the same massive count and every frequency within
-    1e-8 relative (measured 1e-12 bare, 1e-10 with the 11 element kinds on the prototype); at
+    1e-8 relative (measured 1e-12 bare, 1e-10 with every element kind on the prototype); at
     every pose within what the two routes can resolve where that is looser. The twin computes
     mu = 1 / (2 pi f)^2 (a flexibility): mu is known to eps times the largest, so f to
     ``eps (f / f_min)^2``; the Pinocchio route computes omega^2 (a stiffness), so f to

@@ -507,12 +507,22 @@ def test_site_springs_and_form_weights_are_one_compliance(form):
     for _ in range(5):
         e = rng.normal(size=3)
         e /= np.linalg.norm(e)
+        second = rng.normal(size=3)  # the out-of-plane form's second axis (any, made normal to e)
         length, c = rng.uniform(0.05, 0.4), rng.uniform(0.5, 2.0)
         cols, u = np.zeros(4), np.zeros((4, 6))
-        n = pipeline.site_springs(form, c, length, e, cols, u)
+        n = pipeline.site_springs(form, c, length, e, second, cols, u)
         C = (u[:n].T * cols[:n]) @ u[:n]
         wff, wef, wmm, wem, wx = pipeline._form_weights(form, length)
         wa, wb = rng.normal(size=6), rng.normal(size=6)
+        if FORMS[form] == "beam_bending_out":  # the lanes read the wrench projected (pipeline._out_of_plane)
+            nn = second - (second @ e) * e
+            nn /= np.linalg.norm(nn)
+            bb = np.cross(e, nn)
+            # the hand-written cantilever in that plane: [[L^3/3, L^2/2], [L^2/2, L]] / EI on (f.n, m.b)
+            hand = c * np.array([[length**3 / 3, length**2 / 2], [length**2 / 2, length]])
+            fold = np.vstack([np.r_[nn, 0, 0, 0], np.r_[0, 0, 0, bb]])
+            np.testing.assert_allclose(C, fold.T @ hand @ fold, rtol=0, atol=1e-14 * np.max(np.abs(C)))
+            wa, wb = (np.r_[(w[:3] @ nn) * nn, (w[3:] @ bb) * bb] for w in (wa, wb))
         fa, ma, fb, mb = wa[:3], wa[3:], wb[:3], wb[3:]
         weights = c * (wff * fa @ fb + wef * (e @ fa) * (e @ fb) + wmm * ma @ mb + wem * (e @ ma) * (e @ mb)
                        + wx * (ma @ np.cross(e, fb) + mb @ np.cross(e, fa)))

@@ -16,7 +16,7 @@ from h4pin.checks.deformed import DeformedH4
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.geometry import H4Geometry
 from h4pin.kinematics.closed_form import normal_pair
-from h4pin.stiffness.elements import BEAMS, _beam_matrix, beam_axes, spring_compliances
+from h4pin.stiffness.elements import BEAMS, _beam_matrix, beam_axes, out_of_plane_compliance, spring_compliances
 
 
 class DeformedElementsH4(DeformedH4):
@@ -33,6 +33,8 @@ class DeformedElementsH4(DeformedH4):
       relative to the lateral bar, in its frame: B_i1 and B_i2 follow.
     * ``eps_p`` (4, 6): forearm i's root moved and turned about P_i, world frame: A_i1 and A_i2
       follow (base mount; the shaft tilt is a turn about a normal to u_i).
+    * ``eps_a`` (4, 6): forearm i's tip moved and turned about A_i (midway between A_i1 and
+      A_i2), world frame: A_i1 and A_i2 follow (the forearm bending out of its plane).
     """
 
     def __init__(self, g: H4Geometry, pose: np.ndarray):
@@ -40,6 +42,7 @@ class DeformedElementsH4(DeformedH4):
         self.eps_c = np.zeros((2, 6))
         self.eps_b = np.zeros((4, 6))
         self.eps_p = np.zeros((4, 6))
+        self.eps_a = np.zeros((4, 6))
         R = self.state.R
         self.normals = [R.T @ normal_pair(v) for v in self.pts.v]  # central-bar frame
 
@@ -61,6 +64,9 @@ class DeformedElementsH4(DeformedH4):
         P = np.repeat(self.g.P, 2, axis=0)
         ep = np.repeat(self.eps_p, 2, axis=0)
         out = np.stack([P[n] + ep[n, :3] + pin.exp3(ep[n, 3:]) @ (aij[n] - P[n]) for n in range(8)])
+        tip = np.repeat(0.5 * (out[0::2] + out[1::2]), 2, axis=0)
+        ea = np.repeat(self.eps_a, 2, axis=0)
+        out = np.stack([tip[n] + ea[n, :3] + pin.exp3(ea[n, 3:]) @ (out[n] - tip[n]) for n in range(8)])
         return out, lengths
 
     def sensitivity(self, which: str, index: int, direction: np.ndarray, step: float = 1e-6) -> np.ndarray:
@@ -133,6 +139,15 @@ def element_terms_fd(g: H4Geometry, pose: np.ndarray, elements: Elements, step: 
             shaft = np.column_stack([robot.sensitivity("p", i, _pad(None, normal_pair(g.u[i])[:, j]), step)
                                      for i in range(4) for j in range(2)])
             out["shaft_tilt"] = (shaft * comp["shaft_tilt"]) @ shaft.T
+    if "forearm_out_EI" in on:  # the tip A_i moved and turned (world frame) at the assembled pose
+        tips = robot.pts.A - robot.pts.P
+        term = np.zeros((8, 8))
+        for i in range(4):
+            sens = robot.sensitivities_6d("a", i, step)
+            length = float(np.linalg.norm(tips[i]))
+            term += sens @ out_of_plane_compliance(tips[i] / length, g.u[i], length,
+                                                   elements.forearm_out_EI[i]) @ sens.T
+        out["forearm_out_EI"] = term
     return out
 
 

@@ -10,7 +10,9 @@ Elements (SI, one value per element; 0 switches a compliance off, ``inf`` a rigi
 * ``central_EI``, ``central_GJ`` (2,) N.m^2: bending and torsion of the central bar's segment
   D-C_k; ``lateral_EI``, ``lateral_GJ`` (4,) N.m^2: the same for lateral bar k's arm C_k-B_i;
 * ``shaft_tilt`` (4,) rad/(N.m): actuator i's shaft and bearings;
-* ``base_translation`` (4,) m/N, ``base_rotation`` (4,) rad/(N.m): actuator i's mount on the base.
+* ``base_translation`` (4,) m/N, ``base_rotation`` (4,) rad/(N.m): actuator i's mount on the base;
+* ``forearm_out_EI`` (4,) N.m^2: forearm i's bending out of its plane (its tip moving along u_i),
+  which eq. 30 leaves rigid (it bends the forearm about u_i only).
 
 The data sit in the URDF next to their element (:mod:`h4pin.description.urdf`) and
 :func:`h4pin.load` reads them into :attr:`H4.elements <h4pin.H4>`; :func:`h4pin.compliance` adds a
@@ -36,11 +38,13 @@ SITE_JOINT, SITE_ARM, SITE_MOUNT, SITE_TIP, SITE_BAR = range(len(SITES))
 #: Forms of an element's compliance C (6 x 6 on the site's wrench [force, couple]) about its
 #: axis e: isotropic, normal to e or along e, on the force or the couple; a straight
 #: Euler-Bernoulli cantilever along e (bending, given as 1/EI; torsion, 1/GJ) of the element's
-#: length, clamped at its root and loaded at the site's point.
+#: length, clamped at its root and loaded at the site's point; ``beam_bending_out``: the same
+#: cantilever bending in one plane only, the one that holds e and the actuator axis u_i (a
+#: forearm's tip moving along u_i, turning about e x u_i).
 FORMS = ("force", "force_normal", "force_axial", "couple", "couple_normal", "couple_axial", "beam_bending",
-         "beam_torsion")
+         "beam_torsion", "beam_bending_out")
 (FORM_FORCE, FORM_FORCE_NORMAL, FORM_FORCE_AXIAL, FORM_COUPLE, FORM_COUPLE_NORMAL, FORM_COUPLE_AXIAL,
- FORM_BEAM_BENDING, FORM_BEAM_TORSION) = range(len(FORMS))
+ FORM_BEAM_BENDING, FORM_BEAM_TORSION, FORM_BEAM_BENDING_OUT) = range(len(FORMS))
 #: Axes: none (isotropic forms), z (the lateral revolutes of an exact robot), u_i (actuator i),
 #: C_k - D (the central-bar segment), B_i - C_k (lateral bar k's arm), A_i - P_i (forearm i),
 #: w_n (bar n).
@@ -89,10 +93,11 @@ KINDS = (
     Kind("shaft_tilt", 4, "rad/(N.m)", "mount", "couple_normal", "actuator"),
     Kind("base_translation", 4, "m/N", "mount", "force"),
     Kind("base_rotation", 4, "rad/(N.m)", "mount", "couple"),
+    Kind("forearm_out_EI", 4, "N.m^2", "tip", "beam_bending_out", "forearm", rigidity=True),
 )
 ELEMENTS = tuple(k.name for k in KINDS)
 #: Number of elements of each kind: per lateral revolute joint or central-bar segment D-C_k (2),
-#: per leg (4: lateral arm C_k-B_i, actuator shaft, base mount) or per bar (8).
+#: per leg (4: lateral arm C_k-B_i, actuator shaft, base mount, forearm) or per bar (8).
 COUNTS = {k.name: k.count for k in KINDS}
 #: Kinds given as a stiffness (N.m^2): > 0, ``inf`` (the default) is rigid, i.e. off. The others
 #: are compliances: >= 0, 0 (the default) is off.
@@ -112,6 +117,8 @@ def element_name(name: str, index: int) -> str:
         return f"actuator shaft of leg {index + 1}"
     if name.startswith("base"):
         return f"base mount of actuator {index + 1}"
+    if name.startswith("forearm"):
+        return f"forearm {index + 1}"
     return f"ball joints of bar {index // 2 + 1}{index % 2 + 1}"
 
 
@@ -141,7 +148,7 @@ def check_elements(values: dict[str, Any], error: type[Exception] = ParameterErr
             k = int(np.argmax(bad))
             owner = owners[name][k] if owners else element_name(name, k)
             rule = "> 0; inf switches it off" if rigidity else "finite and >= 0; 0 switches it off"
-            raise error(f"{prefix}{owner}: {name} = {arr[k]!r} is not physical (must be {rule})")
+            raise error(f"{prefix}{owner}: {name} = {float(arr[k])!r} is not physical (must be {rule})")
         arr.setflags(write=False)
         out[name] = arr
     return out
@@ -163,6 +170,10 @@ class Elements:
       turning about the two axes normal to u_i. 0: off.
     * ``base_translation`` (4,) m/N and ``base_rotation`` (4,) rad/(N.m): actuator i's mount on
       the base, an isotropic 6-D spring at P_i. 0: off.
+    * ``forearm_out_EI`` (4,) N.m^2: bending rigidity of forearm i out of its plane (about the
+      normal e x u_i to the forearm axis e in the plane of the forearm's rotation), a cantilever of
+      the whole forearm P_i-A_i clamped at P_i, its tip A_i moving along u_i. A round tube has
+      the forearm's E I about both normals. ``inf``: rigid (off), the paper's model.
     """
 
     revolute_radial: Any = 0.0
@@ -176,6 +187,7 @@ class Elements:
     shaft_tilt: Any = 0.0
     base_translation: Any = 0.0
     base_rotation: Any = 0.0
+    forearm_out_EI: Any = np.inf
 
     def __post_init__(self) -> None:
         checked = check_elements({n: getattr(self, n) for n in ELEMENTS})
@@ -204,10 +216,12 @@ _ROD_I = np.pi * 8e-3**4 / 4.0
 #: (radial/axial ~1e8 N/m, tilt ~2e4 N.m/rad with 20 mm between them), a 10 mm ball joint ~5e7 N/m;
 #: the plate's bars as the URDF's 8 mm aluminium rods (EI 225 N.m^2, GJ 167 N.m^2); the actuator
 #: shaft on two bearings of ~1e8 N/m 30 mm apart (k s^2 / 2 = 4.5e4 N.m/rad: 2e-5 rad/(N.m)); a
-#: motor bolted to an aluminium frame through a ~10 mm bracket (1e8 N/m, 1e5 N.m/rad).
+#: motor bolted to an aluminium frame through a ~10 mm bracket (1e8 N/m, 1e5 N.m/rad); the
+#: forearms out of plane with the paper's in-plane E I (70 GPa x 1.6e4 mm^4 = 1 120 N.m^2).
 ILLUSTRATIVE = Elements(revolute_radial=1e-8, revolute_axial=1e-8, revolute_tilt=5e-5, ball_radial=2e-8,
                         central_EI=70e9 * _ROD_I, central_GJ=26e9 * 2 * _ROD_I, lateral_EI=70e9 * _ROD_I,
-                        lateral_GJ=26e9 * 2 * _ROD_I, shaft_tilt=2e-5, base_translation=1e-8, base_rotation=1e-5)
+                        lateral_GJ=26e9 * 2 * _ROD_I, shaft_tilt=2e-5, base_translation=1e-8, base_rotation=1e-5,
+                        forearm_out_EI=70e9 * 1.6e-8)
 
 
 __all__ = ["AXES", "COUNTS", "ELEMENTS", "FORMS", "ILLUSTRATIVE", "KINDS", "RIGIDITIES", "SITES", "UNITS", "Elements",

@@ -153,9 +153,11 @@ class _DataReader:
                   central: int, leg_lat: np.ndarray) -> Elements:
         """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
         links, <h4_plate_bar> in the plate links, shaft_tilt of <h4_actuator> and <h4_base> in the
-        actuated joints); a missing element or attribute is off."""
+        actuated joints, out_EI of <h4_forearm> in the forearm links); a missing element or
+        attribute is off."""
         joints = [self.model.names[j] for j in lateral]
         actuated = [self.model.names[j] for j in act]
+        forearms = [extras.joint_child.get(name, "") for name in actuated]
         central_link = extras.joint_child.get(self.model.names[central], "")
         lateral_links = [extras.joint_child.get(name, "") for name in joints]
         # <h4_plate_bar> EI_n/GJ_n: n is C_n on the central bar, leg n (B_n) on a lateral bar.
@@ -171,11 +173,13 @@ class _DataReader:
                                         f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
         # the other elements only where they belong
         places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
-                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint")}
+                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint"),
+                  "forearm": (set(forearms), "a forearm link")}
         source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
         for owner, data in extras.springs.items():
             for field in data:
-                if field in ELEMENTS and field not in RIGIDITIES and owner not in places[field.split("_")[0]][0]:
+                if (field in ELEMENTS and (field not in RIGIDITIES or field.startswith("forearm"))
+                        and owner not in places[field.split("_")[0]][0]):
                     tag, attr = source[field]
                     raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
                                     f"{places[field.split('_')[0]][1]} (the element it describes)")
@@ -189,6 +193,9 @@ class _DataReader:
             elif name == "ball_radial":
                 keys = [(b, name) for b in bar_links]
                 owners[name] = [f"bar link '{b}' (<h4_ball radial>)" for b in bar_links]
+            elif name == "forearm_out_EI":
+                keys = [(f, name) for f in forearms]
+                owners[name] = [f"forearm link '{f}' (<h4_forearm out_EI>)" for f in forearms]
             elif name in RIGIDITIES:
                 q = name.split("_")[1]
                 if name.startswith("central"):

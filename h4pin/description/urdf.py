@@ -17,7 +17,8 @@ ignore them; h4pin reads them with an XML parser, :func:`parse`):
   ``<h4_ball radial=/>`` inside each bar ``<link>`` (both ball joints of the bar),
   ``<h4_plate_bar EI_n= GJ_n=/>`` inside the central bar's ``<link>`` (segment D-C_n) and each
   lateral bar's ``<link>`` (arm C_k-B_n of leg n), ``shaft_tilt=`` on ``<h4_actuator>`` and
-  ``<h4_base translation= rotation=/>`` inside each actuated ``<joint>``;
+  ``<h4_base translation= rotation=/>`` inside each actuated ``<joint>``, ``out_EI=`` on
+  ``<h4_forearm>`` (the forearm's bending out of its plane);
 * ``<h4pin format="2" units="SI"/>``: the version of these conventions and the units.
 
 Geometry is never read from a side element: :func:`h4pin.load` takes every length and position
@@ -314,8 +315,10 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
         n = leg_names(i + 1)
         h, r = p.half_width[i], p.r[i]
         parts.append(_frame(n["P"], "base_link", p.P[:, i]))
+        out_ei = "" if elements is None or np.isinf(elements.forearm_out_EI[i]) else \
+            f' out_EI="{_num(elements.forearm_out_EI[i])}"'
         spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
-                  f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"/>')
+                  f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"{out_ei}/>')
         parts.append(_forearm(p, i).xml(n["forearm"], "forearm", spring))
         actuator = f'<h4_actuator kc="{_num(p.kc[i])}"/>'
         if elements is not None:
@@ -390,7 +393,7 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
 SPRING_ELEMENTS = {
     "h4_actuator": ("joint", {"kc": "kc"}),
     "h4_forearm": ("link", {"E": "E", "I": "I", "G": "G", "I0": "I0",
-                            "stressed_fraction": "forearm_stressed_fraction"}),
+                            "stressed_fraction": "forearm_stressed_fraction", "out_EI": "forearm_out_EI"}),
     "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
     "h4_revolute": ("joint", {"radial": "revolute_radial", "axial": "revolute_axial", "tilt": "revolute_tilt"}),
     "h4_ball": ("link", {"radial": "ball_radial"}),

@@ -27,7 +27,10 @@ The virtual joints (world axes and points at the model's neutral configuration, 
   ``arm_i_*`` on lateral bar k's arm C_k-B_i, whose tip carries B_i1, B_i2): torsion, a revolute
   about the beam axis, ``L/(GJ)``; bending, revolutes about the two normals at the two Gauss points
   ``L/2 -+ L/(2 sqrt 3)`` from the root, ``L/(2 EI)`` each, which gives the Euler-Bernoulli
-  cantilever's tip compliance exactly (the two-point Gauss rule integrates ``(L - x)^2`` exactly).
+  cantilever's tip compliance exactly (the two-point Gauss rule integrates ``(L - x)^2`` exactly);
+  ``forearm_i_out_1``, ``_2``: forearm i bending out of its plane (``forearm_out_EI``), revolutes
+  about e x u_i (e the forearm's axis) at the two Gauss points of P_i-A_i, ``r/(2 EI)`` each,
+  beside the forearm's other virtual joints.
 
 Outputs: frame D (LOCAL_WORLD_ALIGNED, the 6 rows) and the two lateral revolutes (signed so that
 omega_k is right-handed about v_k with v_k . z > 0), i.e. ``dtp = [dD, dOmega, domega_1, domega_2]``
@@ -75,6 +78,17 @@ def _beam(prefix: str, root: np.ndarray, tip: np.ndarray, ei: float, gj: float) 
            for g, x in enumerate(_GAUSS) for a, n in enumerate(_normals(e))]
     out.append(VirtualJoint(f"{prefix}_torsion", "revolute", e, root, gj / length))
     return out
+
+
+def _out_of_plane(prefix: str, root: np.ndarray, tip: np.ndarray, normal: np.ndarray, ei: float
+                  ) -> list[VirtualJoint]:
+    """A cantilever root -> tip bending only in the plane of its axis and ``normal``: 2 revolutes
+    about axis x normal at the Gauss points (none when ``ei`` is infinite)."""
+    vec = tip - root
+    length = float(np.linalg.norm(vec))
+    b = np.cross(vec / length, normal)
+    return [VirtualJoint(f"{prefix}_{g + 1}", "revolute", b / np.linalg.norm(b), root + x * vec, 2.0 * ei / length)
+            for g, x in enumerate(_GAUSS)]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -183,7 +197,8 @@ def elastic_model(h4) -> ElasticH4:
         insertions.append(Insertion("universe", tuple(mount), children=(act,)))
         tip = g.A0_leg[i]
         forearm = (VirtualJoint(f"actuator_{i + 1}_elastic", "revolute", u, p, 1.0 / c_act[i]),
-                   VirtualJoint(f"forearm_{i + 1}_torsion", "revolute", tip - p, tip, 1.0 / c_tors[i]))
+                   VirtualJoint(f"forearm_{i + 1}_torsion", "revolute", tip - p, tip, 1.0 / c_tors[i]),
+                   *_out_of_plane(f"forearm_{i + 1}_out", p, tip, u, el.forearm_out_EI[i]))
         universal = tuple(m.names[m.parents[cms[2 * i + j].joint1_id]] for j in range(2))
         insertions.append(Insertion(act, forearm, children=universal,
                                     frames=frames(f"A_{i + 1}", f"A_{i + 1}1", f"A_{i + 1}2")))

@@ -107,6 +107,8 @@ def element_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     * ``base`` (4, 6, 8): the wrench [force, couple about P_i] of leg i on the base: the pulls of
       bars i1, i2 on the forearm at A_ij; ``shaft_tilt`` (8, 8): its couple about the two unit
       normals to u_i (rows 2i, 2i + 1).
+    * ``tip`` (4, 6, 8): the wrench [force, couple about A_i] bars i1, i2 put on the tip A_i of
+      forearm i (the forearm clamped at P_i; A_i midway between A_i1 and A_i2).
     """
     p = plate_loads(g, pose)
     pts, w, f = p["points"], p["w"], p["bars"]
@@ -123,15 +125,18 @@ def element_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
     bij, aij = pts.Bij.reshape(8, 3), pts.Aij.reshape(8, 3)
     lateral = np.zeros((4, 6, 8))
     base = np.zeros((4, 6, 8))
+    tip = np.zeros((4, 6, 8))
     for n in range(8):
         i = n // 2
         lateral[i, :3] -= pulls[n]
         lateral[i, 3:] -= np.cross(bij[n] - pts.B[i], pulls[n], axis=0)
         base[i, :3] += pulls[n]
         base[i, 3:] += np.cross(aij[n] - pts.P[i], pulls[n], axis=0)
+        tip[i, :3] += pulls[n]
+        tip[i, 3:] += np.cross(aij[n] - pts.A[i], pulls[n], axis=0)
     shaft = np.concatenate([normal_pair(g.u[i]).T @ base[i, 3:] for i in range(4)])
     return {"revolute_radial": radial, "revolute_axial": axial, "revolute_tilt": tilt, "ball_radial": f,
-            "central": central, "lateral": lateral, "base": base, "shaft_tilt": shaft}
+            "central": central, "lateral": lateral, "base": base, "shaft_tilt": shaft, "tip": tip}
 
 
 def spring_compliances(elements: Elements) -> dict[str, np.ndarray]:
@@ -147,6 +152,25 @@ def spring_compliances(elements: Elements) -> dict[str, np.ndarray]:
 #: Beam kinds: rigidity field -> (beam family, part of :func:`beam_compliance`: 0 bending, 1 torsion).
 BEAMS = {"central_EI": ("central", 0), "central_GJ": ("central", 1), "lateral_EI": ("lateral", 0),
          "lateral_GJ": ("lateral", 1)}
+
+
+def out_of_plane_compliance(axis: np.ndarray, normal: np.ndarray, length: float, ei: float) -> np.ndarray:
+    """Tip compliance (6, 6) of a cantilever bending in one plane only: the beam of
+    :func:`beam_compliance` (length L along the unit ``axis`` e, clamped at its root, loaded at
+    its tip) whose tip moves along n (``normal`` made normal to e) and turns about b = e x n:
+    ``[delta_n, phi_b] = 1/EI [[L^3/3, L^2/2], [L^2/2, L]] [P.n, M.b]`` (a forearm out of its
+    plane: n = u_i). Zero for an infinite rigidity."""
+    e = np.asarray(axis, dtype=float)
+    n = np.asarray(normal, dtype=float) - (np.dot(normal, e)) * e
+    n /= np.linalg.norm(n)
+    b = np.cross(e, n)
+    f = 0.0 if np.isinf(ei) else 1.0 / ei
+    out = np.zeros((6, 6))
+    out[:3, :3] = length**3 / 3.0 * f * np.outer(n, n)
+    out[3:, 3:] = length * f * np.outer(b, b)
+    out[:3, 3:] = length**2 / 2.0 * f * np.outer(n, b)
+    out[3:, :3] = out[:3, 3:].T
+    return out
 
 
 def beam_axes(g: H4Geometry) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -186,6 +210,14 @@ def element_terms(g: H4Geometry, pose: np.ndarray, elements: Elements) -> dict[s
                 length = float(np.linalg.norm(vec[index]))
                 term += wrench.T @ _beam_matrix(name, elements, index, vec[index] / length, length) @ wrench
             out[name] = term
+        elif name == "forearm_out_EI":  # forearm i: P_i -> A_i, out of its plane (along u_i)
+            term = np.zeros((8, 8))
+            for i, wrench in enumerate(loads["tip"]):
+                vec = pts.A[i] - pts.P[i]
+                length = float(np.linalg.norm(vec))
+                c6 = out_of_plane_compliance(vec / length, g.u[i], length, elements.forearm_out_EI[i])
+                term += wrench.T @ c6 @ wrench
+            out[name] = term
         else:  # base: isotropic translation on the force, rotation on the couple
             part = slice(0, 3) if name == "base_translation" else slice(3, 6)
             c = getattr(elements, name)
@@ -212,5 +244,5 @@ def add_terms(g: H4Geometry, x: np.ndarray, raw, elements: Elements | None):
     return raw._replace(terms=np.concatenate([raw.terms, extra], axis=1))
 
 
-__all__ = ["BEAMS", "add_terms", "beam_axes", "beam_compliance", "element_loads", "element_terms", "plate_loads",
-           "spring_compliances"]
+__all__ = ["BEAMS", "add_terms", "beam_axes", "beam_compliance", "element_loads", "element_terms",
+           "out_of_plane_compliance", "plate_loads", "spring_compliances"]

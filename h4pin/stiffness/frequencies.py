@@ -35,17 +35,18 @@ import pinocchio as pin
 from numba import njit
 
 from h4pin import _jit
-from h4pin.description.elements import SITE_BAR, SITE_MOUNT, SITE_TIP
+from h4pin.description.elements import FORM_BEAM_BENDING_OUT, SITE_BAR, SITE_MOUNT, SITE_TIP
 from h4pin.errors import ParameterError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import pinocchio as kin
 from h4pin.stiffness import kernel, pipeline
-from h4pin.stiffness.packed import _CBEND, _CCTRL, _CTENS, _CTORS, _P, EL_HEADER, EL_ROW
+from h4pin.stiffness.packed import _CBEND, _CCTRL, _CTENS, _CTORS, _P, _U, EL_HEADER, EL_ROW
 from h4pin.stiffness.pipeline import _A, _B, _EA, _GC, _LW, _TV, X_F, X_S, X_Y
 
 #: Relative eigenvalue of H (to its largest) at or under which a direction is massless: 16 eps.
 #: The massless directions' eigenvalues are round-off (at most 6.6e-16 of the largest over 80 poses
-#: of every variant with the 11 element kinds, 88 springs); the massive ones reach down to 1.5e-14
+#: of every variant with the 11 element kinds of the time, 88 springs; 96 with forearm_out_EI);
+#: the massive ones reach down to 1.5e-14
 #: (the symmetric variant near its singular centre with every element on: a 0.1 Hz mode beside a
 #: 1e5 Hz one). The Pinocchio route decides on the modal mass alone (its own 1e-12).
 MASSLESS_TOL = 16 * 2.220446049250313e-16
@@ -550,7 +551,10 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
             e = Xs[_EA:_EA + 3, 0].copy()
             pipeline._site_point(G, site, s, 0, 1, S, Xs)
             o = Xs[_EA:_EA + 3, 0].copy()
-            k = pipeline.site_springs(form, c, length, e, comp, us)
+            n = e
+            if form == FORM_BEAM_BENDING_OUT:  # its second axis: leg s's actuator axis u_i
+                n = G[_U + 3 * s:_U + 3 * s + 3].copy()
+            k = pipeline.site_springs(form, c, length, e, n, comp, us)
             y0 = sy[stype, s]
             for p in range(k):
                 sc = math.sqrt(comp[p])

@@ -60,6 +60,7 @@ from h4pin.description.elements import (
     AXIS_FOREARM,
     AXIS_Z,
     FORM_BEAM_BENDING,
+    FORM_BEAM_BENDING_OUT,
     FORM_BEAM_TORSION,
     FORM_COUPLE,
     FORM_COUPLE_AXIAL,
@@ -593,7 +594,10 @@ def _element_axis(G, axis, s, nl, S, X):
 def _form_weights(form, length):
     """The weights of f.f, (e.f)(e.f), mu.mu, (e.mu)(e.mu) and mu.(e x f) in a form's bilinear
     form (:data:`h4pin.description.elements.FORMS`); a beam's from the Euler-Bernoulli cantilever
-    of that length (``h4pin.stiffness.elements.beam_compliance``, per unit 1/EI or 1/GJ)."""
+    of that length (``h4pin.stiffness.elements.beam_compliance``, per unit 1/EI or 1/GJ). A beam
+    bending out of its plane reads, on the wrench :func:`_out_of_plane` makes of it (force along
+    n, couple about b = e x n), the same invariants as the cantilever: f.f = fn fn, mu.mu = mb mb
+    and mu.(e x f) = mb fn."""
     if form == FORM_FORCE:
         return 1.0, 0.0, 0.0, 0.0, 0.0
     if form == FORM_FORCE_NORMAL:
@@ -608,6 +612,8 @@ def _form_weights(form, length):
         return 0.0, 0.0, 0.0, 1.0, 0.0
     if form == FORM_BEAM_TORSION:
         return 0.0, 0.0, 0.0, length, 0.0
+    if form == FORM_BEAM_BENDING_OUT:
+        return length * length * length / 3.0, 0.0, length, 0.0, 0.5 * length * length
     cube = length * length * length / 3.0  # FORM_BEAM_BENDING
     return cube, -cube, length, -length, 0.5 * length * length
 
@@ -630,18 +636,20 @@ def spring_count(form):
     """How many rank-one parts :func:`site_springs` gives an element of this form."""
     if form == FORM_FORCE or form == FORM_COUPLE:
         return 3
-    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
+    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL or form == FORM_BEAM_BENDING_OUT:
         return 2
     return 4 if form == FORM_BEAM_BENDING else 1
 
 
 @njit(cache=True, nogil=True)
-def site_springs(form, c, length, e, cols, u):
+def site_springs(form, c, length, e, n, cols, u):
     """The rank-one parts (c_t, u_t) of an element's compliance C = sum c_t u_t u_t^T in its form
     (u_t (6,) a twist [translation; rotation] at the site's point, dual to its wrench [force;
     couple]) into cols (compliances) and u (rows); returns how many. A beam's bending in each
     plane normal to its axis e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2`` (the cantilever
-    of :func:`h4pin.stiffness.elements.beam_compliance`). The same C as :func:`_form_weights`
+    of :func:`h4pin.stiffness.elements.beam_compliance`); out of plane, the same in the plane of
+    e and n only (n the element's second axis, made normal to e; the force along n, the couple
+    about e x n). The same C as :func:`_form_weights`
     (``tests/test_pipeline.py`` checks every form): that one for the lanes' terms, this one for
     the natural frequencies (:mod:`h4pin.stiffness.frequencies`), which need the springs."""
     n1, n2 = _normals(e)
@@ -669,14 +677,45 @@ def site_springs(form, c, length, e, cols, u):
         u[0, 3:] = e
         cols[0] = c * length
         return 1
-    k = 1.5 / length  # FORM_BEAM_BENDING
-    u[0, :3], u[0, 3:] = n1, k * n2
+    k = 1.5 / length
+    if form == FORM_BEAM_BENDING_OUT:
+        d = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+        m = n - d * e
+        m /= math.sqrt(m[0] ** 2 + m[1] ** 2 + m[2] ** 2)
+        b = np.array(_cross_t(e[0], e[1], e[2], m[0], m[1], m[2]))
+        u[0, :3], u[0, 3:] = m, k * b
+        u[1, :3], u[1, 3:] = 0.0, b
+        cols[0] = c * length ** 3 / 3.0
+        cols[1] = c * length / 4.0
+        return 2
+    u[0, :3], u[0, 3:] = n1, k * n2  # FORM_BEAM_BENDING
     u[1, :3], u[1, 3:] = 0.0, n2
     u[2, :3], u[2, 3:] = n2, -k * n1
     u[3, :3], u[3, 3:] = 0.0, n1
     cols[0] = cols[2] = c * length ** 3 / 3.0
     cols[1] = cols[3] = c * length / 4.0
     return 4
+
+
+@njit(**_STAGE)
+def _out_of_plane(G, s, slots, nl, X):
+    """A beam bending out of its plane (leg s's forearm along e, rows _EA of X): each slot's
+    force replaced by its part along n (u_s made normal to e) and its couple by its part about
+    b = e x n, the only loads that bend it out of plane (:func:`_form_weights`)."""
+    for l in range(nl):
+        ex, ey, ez = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
+        ux, uy, uz = G[_U + 3 * s], G[_U + 3 * s + 1], G[_U + 3 * s + 2]
+        d = ux * ex + uy * ey + uz * ez
+        nx, ny, nz = ux - d * ex, uy - d * ey, uz - d * ez
+        inv = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)
+        nx, ny, nz = nx * inv, ny * inv, nz * inv
+        bx, by, bz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
+        for t in range(slots):
+            fa, ma = _EF + 3 * t, _EM + 3 * t
+            fn = nx * X[fa, l] + ny * X[fa + 1, l] + nz * X[fa + 2, l]
+            mb = bx * X[ma, l] + by * X[ma + 1, l] + bz * X[ma + 2, l]
+            X[fa, l], X[fa + 1, l], X[fa + 2, l] = fn * nx, fn * ny, fn * nz
+            X[ma, l], X[ma + 1, l], X[ma + 2, l] = mb * bx, mb * by, mb * bz
 
 
 @njit(**_STAGE)
@@ -711,6 +750,8 @@ def _element_kind(G, EG, row, nl, S, X, E):
                 X[_EM + 3 * slot + 2, l] = rx * fy - ry * fx
             slot += 1
         _element_axis(G, axis, s, nl, S, X)
+        if form == FORM_BEAM_BENDING_OUT:
+            _out_of_plane(G, s, slot, nl, X)
         for t in range(slot):
             for l in range(nl):  # e x f_t
                 ex, ey, ez = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
