@@ -204,6 +204,16 @@ class H4:
             also ``model.referenceConfigurations["q0"]`` (Pinocchio's convention); None if the
             robot does not assemble there.
         urdf: The URDF text; source: where it came from.
+
+    Copies and pickles: an H4 travels as what defines it, not as its Pinocchio objects (which
+    neither pickle nor deep-copy) or its per-thread data: :meth:`__reduce__` gives
+    :func:`_rebuild` with the URDF text, the source name, the ``springs`` override of the load
+    (as float arrays), the ``bar_clearance`` and the current :attr:`elements` (so a robot of
+    :meth:`with_elements` or ``load(..., elements=...)`` keeps them). ``pickle`` (a process pool,
+    a Dask worker) and ``copy.deepcopy`` both rebuild the robot from these (some 20 ms): a new
+    model with the same geometry, springs and elements, bit-identical numbers, and new per-thread
+    data on the other side. ``copy.copy`` returns the robot itself: it is immutable, and sharing
+    one between threads is already safe.
     """
 
     def __init__(self, urdf_text: str, source: str = "URDF", *, springs: dict[str, Any] | None = None,
@@ -211,8 +221,14 @@ class H4:
         desc = read(urdf_text, source, springs, bar_clearance)
         if elements is not None:
             desc = desc._replace(elements=_as_elements(elements))
+        # What rebuilds this robot elsewhere (__reduce__): the override as read accepted it, as
+        # plain read-only float arrays (a later change to the caller's arrays does not travel).
+        override = {name: np.array(value, dtype=float) for name, value in (springs or {}).items()}
+        for value in override.values():
+            value.setflags(write=False)
         values = dict(desc._asdict(), urdf=urdf_text, source=source, _local=threading.local(),
-                      _lazy={}, _lazy_lock=threading.RLock())
+                      _lazy={}, _lazy_lock=threading.RLock(), _springs_override=override,
+                      _bar_clearance=float(bar_clearance))
         values["_collision_geometry"] = values.pop("collision_model")  # pairs added on first use
         for name, value in values.items():
             object.__setattr__(self, name, value)
@@ -233,6 +249,16 @@ class H4:
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"an H4 is immutable once loaded (cannot set {name!r}); load another one")
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle and ``copy.deepcopy`` as :func:`_rebuild` of what defines this robot (class
+        docstring): its URDF text, source, springs override, bar clearance and elements."""
+        springs = dict(self._springs_override) or None
+        return _rebuild, (self.urdf, self.source, springs, self.elements, self._bar_clearance)
+
+    def __copy__(self) -> H4:
+        """This robot itself: an H4 is immutable (``copy.deepcopy`` rebuilds a new one)."""
+        return self
 
     @property
     def data(self) -> pin.Data:
@@ -384,6 +410,13 @@ class H4:
     def __repr__(self) -> str:
         return (f"H4(source={self.source!r}, nq={self.model.nq}, nv={self.model.nv}, "
                 f"closures={len(self.constraint_models)})")
+
+
+def _rebuild(urdf_text: str, source: str, springs: dict[str, np.ndarray] | None, elements: Elements,
+             bar_clearance: float) -> H4:
+    """An :class:`H4` made anew from what :meth:`H4.__reduce__` gives (unpickling, deep copies):
+    the same geometry, springs and elements, new Pinocchio objects and per-thread data."""
+    return H4(urdf_text, source, springs=springs, elements=elements, bar_clearance=bar_clearance)
 
 
 __all__ = ["H4", "DisabledCollision", "disable_collisions_xml", "disabled_collisions", "load", "urdf_dir",

@@ -322,3 +322,92 @@ def test_collision_model_is_made_once_and_shared(proto):
     assert len({id(cm) for cm in seen}) == 1
     assert robot.with_elements(robot.elements).collision_model is seen[0]
     assert len(seen[0].collisionPairs) == len(proto.collision_model.collisionPairs) > 0
+
+
+def _travellers(proto) -> dict[str, h4pin.H4]:
+    """Robots made by each route that changes what defines one: as shipped, other elements
+    (``with_elements``), and springs and bar clearance given at load (numbers from ``proto``)."""
+    from h4pin.description.elements import ILLUSTRATIVE
+
+    kc = proto.geometry.springs["kc"] * np.array([1.0, 2.0, 3.0, 4.0])
+    return {"prototype": proto, "elements": proto.with_elements(ILLUSTRATIVE),
+            "springs": h4pin.load("prototype", springs={"kc": kc, "Eb": proto.geometry.springs["Eb"] / 3},
+                                  bar_clearance=proto.geometry.bar_clearance / 2)}
+
+
+@pytest.mark.parametrize("kind", ["prototype", "elements", "springs"])
+@pytest.mark.parametrize("how", ["pickle", "deepcopy"])
+def test_a_robot_travels_by_being_rebuilt(proto, poses, kind, how):
+    """pickle and copy.deepcopy rebuild the robot from its URDF text, source, springs override,
+    bar clearance and elements: a new model, the same numbers to the bit."""
+    import copy
+    import pickle
+
+    robot = _travellers(proto)[kind]
+    if kind != "prototype":  # the route changed the robot: a copy that lost it would show
+        changed = not robot.elements.allclose(proto.elements) if kind == "elements" else not np.array_equal(
+            robot.geometry.compliances()["control"], proto.geometry.compliances()["control"])
+        assert changed
+    twin = pickle.loads(pickle.dumps(robot)) if how == "pickle" else copy.deepcopy(robot)
+    assert type(twin) is h4pin.H4 and twin is not robot
+    assert twin.model is not robot.model and twin.data is not robot.data
+    assert twin.constraint_datas is not robot.constraint_datas
+    assert twin.urdf == robot.urdf and twin.source == robot.source
+    assert twin.elements.allclose(robot.elements, rtol=0) and robot.elements.allclose(twin.elements, rtol=0)
+    assert twin.geometry.bar_clearance == robot.geometry.bar_clearance
+    for name, value in robot.geometry.springs.items():
+        np.testing.assert_array_equal(twin.geometry.springs[name], value)
+    np.testing.assert_array_equal(twin.q0, robot.q0)
+    for x in poses[:3]:
+        np.testing.assert_array_equal(h4pin.compliance(twin, x).matrix, h4pin.compliance(robot, x).matrix)
+    np.testing.assert_array_equal(h4pin.compliance(twin, poses[3:6]).matrix, h4pin.compliance(robot, poses[3:6]).matrix)
+    np.testing.assert_array_equal(twin.jacobian(poses[0]), robot.jacobian(poses[0]))
+    assert copy.copy(robot) is robot  # immutable: a shallow copy is the robot itself
+
+
+def test_a_springs_override_travels_as_loaded(proto, centre):
+    """The override travels as it was at load: changing the caller's array afterwards changes
+    neither the robot nor its copies."""
+    import pickle
+
+    kc = proto.geometry.springs["kc"] * 2
+    robot = h4pin.load("prototype", springs={"kc": kc})
+    before = h4pin.compliance(robot, centre).matrix
+    kc *= 10
+    twin = pickle.loads(pickle.dumps(robot))
+    np.testing.assert_array_equal(twin.geometry.springs["kc"], robot.geometry.springs["kc"])
+    np.testing.assert_array_equal(h4pin.compliance(twin, centre).matrix, before)
+
+
+def _compliance_elsewhere(h4: h4pin.H4, pose: np.ndarray) -> tuple[int, np.ndarray]:
+    """(this process's id, the compliance matrix): what a pool worker sends back."""
+    import os
+
+    return os.getpid(), h4pin.compliance(h4, pose, method="closed_form").matrix
+
+
+@pytest.fixture(scope="module")
+def resource_tracker():
+    """multiprocessing's resource tracker, started before ``no_process_left`` tags this test's
+    processes: it serves the whole test session, it is not the pool's to stop."""
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+
+
+def test_a_robot_goes_to_a_process_pool(proto, poses, resource_tracker, no_process_left):
+    """A spawned worker (a fresh interpreter: nothing inherited) gets the robot by pickle and
+    computes the same matrices, to the bit, as this process; the pool's worker is gone after."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+
+    from h4pin.description.elements import ILLUSTRATIVE
+
+    robot = proto.with_elements(ILLUSTRATIVE)
+    chosen = poses[:2]
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        out = list(pool.map(_compliance_elsewhere, [robot] * len(chosen), chosen, timeout=60))
+    assert len(out) == len(chosen) and all(pid != os.getpid() for pid, _ in out)
+    for (_, matrix), x in zip(out, chosen, strict=True):
+        np.testing.assert_allclose(matrix, h4pin.compliance(robot, x, method="closed_form").matrix, rtol=0, atol=0)

@@ -94,6 +94,10 @@ KEYFRAME = "q0"
 CAMERA = "overview"
 #: Lowest MuJoCo version :func:`spec` works with (``pyproject.toml``'s ``mujoco`` extra; tested in CI).
 MIN_MUJOCO = "3.2.4"
+#: Lowest MuJoCo version :func:`elastic_spec` works with (tested in CI): 3.2.4's ``MjSpec.compile``
+#: steps the model at its reference configuration, where the elastic file's loops are open
+#: (its actuators are locked at a pose), and refuses it as unstable.
+MIN_MUJOCO_ELASTIC = "3.2.5"
 #: Suffixes of the three slide joints that carry a floating joint's translation.
 SLIDES = ("_x", "_y", "_z")
 _MARGIN = 0.05  # m, floor below the lowest reachable point
@@ -124,20 +128,20 @@ def _version(text: str) -> tuple[int, ...]:
     return tuple(int(part) for part in re.findall(r"\d+", text)[:3])
 
 
-def _mujoco() -> Any:
-    """The ``mujoco`` module, at least :data:`MIN_MUJOCO`.
+def _mujoco(least: str = MIN_MUJOCO, what: str = "the MuJoCo export (h4pin.io.mjcf)") -> Any:
+    """The ``mujoco`` module, at least ``least`` (:data:`MIN_MUJOCO`).
 
     Raises:
-        MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO`.
+        MissingExtraError: MuJoCo is not installed, or older than ``least``.
     """
     from h4pin.extras import MissingExtraError, require
 
-    require("mujoco", extra="mujoco", what="the MuJoCo export (h4pin.io.mjcf)")
+    require("mujoco", extra="mujoco", what=what)
     import mujoco
 
-    if _version(mujoco.__version__) < _version(MIN_MUJOCO):
-        raise MissingExtraError(f"the MuJoCo export (h4pin.io.mjcf) needs MuJoCo >= {MIN_MUJOCO}, this is "
-                                f"{mujoco.__version__}: pip install 'h4pin[mujoco]'")
+    if _version(mujoco.__version__) < _version(least):
+        raise MissingExtraError(f"{what} needs MuJoCo >= {least}, this is {mujoco.__version__}: "
+                                f"pip install 'mujoco>={least}'")
     return mujoco
 
 
@@ -332,11 +336,15 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
     ``damping = damping * stiffness`` (stiffness-proportional damping: a mode of frequency f gets
     the damping ratio ``pi f damping``). The actuators are locked: their joints are removed, each
     forearm welded to the base at its angle in ``q`` (a file holds the robot locked at one
-    configuration). ``actuator_i_elastic``, the actuator's servo and forearm bending spring
-    (coaxial with the actuator), is the forearm's own joint, so that the forearm turns on it as in
+    configuration). Needs MuJoCo >= :data:`MIN_MUJOCO_ELASTIC`. ``actuator_i_elastic``, the
+    actuator's servo and forearm bending spring (coaxial with the actuator), is the forearm's own
+    joint, so that the forearm turns on it as in
     :func:`h4pin.elastic.modes`; every other virtual joint has a body of its own, named after it
     (mass :data:`CHAIN_MASS`, next to nothing), nested in chain order, the last carrying what the
-    chain carries in the elastic model (a forearm's tip, a bar's end and its closure site, ...). A
+    chain carries in the elastic model (a forearm's tip, a bar's end and its closure site, ...).
+    Slides along one line through one point (a bar's stretch and, with ``ball_radial``, its two
+    ball joints) are one slide of their series stiffness, named after the softest
+    (``bar_ij_tension``): the same statics, and a chain MuJoCo integrates stably. A
     virtual joint that moves no mass (a bar's stretch) gets the armature
     ``stiffness * (ARMATURE_STEPS * timestep)^2`` (kg or kg.m^2), for a positive-definite
     joint-space inertia and a spring MuJoCo's explicit integration of stiffness keeps stable. No
@@ -356,20 +364,18 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
         timestep: MuJoCo time step (s), > 0.
 
     Raises:
-        MissingExtraError: MuJoCo is not installed.
+        MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO_ELASTIC`.
         ParameterError: as :func:`spec`, or a damping < 0 or a time step <= 0.
     """
     from h4pin.elastic import elastic_model
+
+    _mujoco(MIN_MUJOCO_ELASTIC, "the elastic MuJoCo export (h4pin.io.mjcf.elastic_spec)")
 
     if not (np.isfinite(damping) and damping >= 0):
         raise ParameterError(f"damping: must be finite and >= 0 (s), got {damping!r}")
     if not (np.isfinite(timestep) and timestep > 0):
         raise ParameterError(f"timestep: must be finite and > 0 (s), got {timestep!r}")
     q = _closed(h4, q)
-    if not h4.elements.off:
-        warnings.warn("the elastic MJCF of a robot with elements is built (every body where Pinocchio's elastic model "
-                      "puts it) but its simulation is not stable with these settings (docs/mujoco.md)", RuntimeWarning,
-                      stacklevel=2)
     plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep))
     return _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
 
@@ -462,11 +468,36 @@ def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _
                 here = zero.oMf[f].act(np.asarray(xyz, float))
                 sites[f"{c.name}_{'parent' if side == 1 else 'child'}"] = (
                     int(joint), zero.oMf[chains[int(joint)].link].actInv(here))
-    armature = {m.names[k]: em.stiffness[m.names[k]] * (ARMATURE_STEPS * timestep) ** 2
-                for k in virtual if not mass[k] > 0}
+    stiffness = dict(em.stiffness)
+    for chain in chains.values():
+        chain.joints = _in_series(chain.joints, stiffness)
+    kept = {j[0] for chain in chains.values() for j in chain.joints}
+    armature = {m.names[k]: stiffness[m.names[k]] * (ARMATURE_STEPS * timestep) ** 2
+                for k in virtual if not mass[k] > 0 and m.names[k] in kept}
     q_em = np.zeros(m.nq)
     q_em[em.q_index] = q
-    return _Plan(em, q_em, locked, chains, moved, sites, dict(em.stiffness), damping, armature)
+    return _Plan(em, q_em, locked, chains, moved, sites, stiffness, damping, armature)
+
+
+def _in_series(joints: list[tuple[str, bool, np.ndarray, np.ndarray]], stiffness: dict[str, float]
+               ) -> list[tuple[str, bool, np.ndarray, np.ndarray]]:
+    """A chain's joints with every run of slides along one line through one point (a bar's two
+    ball joints and its stretch) made one slide of their series stiffness, named after its
+    softest member (``stiffness`` updated): the same statics, and no stiff massless slide beside a
+    soft one, which MuJoCo cannot integrate stably."""
+    out: list[tuple[str, bool, np.ndarray, np.ndarray]] = []
+    for joint in joints:
+        name, revolute, pos, axis = joint
+        if out and not revolute and not out[-1][1] and np.allclose(out[-1][2], pos, rtol=0, atol=1e-12) \
+                and np.linalg.norm(np.cross(out[-1][3], axis)) < 1e-12 * np.linalg.norm(axis):
+            last = out[-1][0]
+            series = 1.0 / (1.0 / stiffness[last] + 1.0 / stiffness[name])
+            keep = last if stiffness[last] <= stiffness[name] else name
+            stiffness[keep] = series
+            out[-1] = (keep, False, out[-1][2], out[-1][3] if keep == last else axis)
+            continue
+        out.append(joint)
+    return out
 
 
 def _spring(mujoco: Any, j: Any, plan: _Plan) -> None:
