@@ -121,6 +121,26 @@ def test_example_robot_data_loads_the_h4(name):
     assert _pairs(robot.collision_model) == _pairs(h4.collision_model)
 
 
+def test_q0_is_the_rounded_centre_not_the_exact_one():
+    """docs/interop.md: load("h4")'s q0 is the configuration of the centre pose rounded to 1e-6,
+    [0, 0, -0.588139 m, 0] (to 4e-13), 2.1e-6 rad from the exact centre's configuration (the
+    actuators 1.4e-6 rad from 45 deg, the plate 4.9e-7 m from the exact centre)."""
+    erd = pytest.importorskip("example_robot_data")
+    _, q0, _, _ = erd.load_full("h4")
+    h4 = h4pin.load("prototype")
+    np.testing.assert_array_equal(h4_erd.reference_pose(h4), [0.0, 0.0, -0.588139, 0.0])
+    np.testing.assert_allclose(q0, h4.configuration([0.0, 0.0, -0.588139, 0.0]), rtol=0, atol=1.2e-12)  # 4.0e-13 x 3
+    exact = h4.configuration(centre_pose(h4))
+    step = pin.difference(h4.model, exact, q0)  # rad for the angles, m for the plate's translation
+    plate = h4.model.joints[h4.model.getJointId("plate")].idx_v
+    angles = np.delete(step, range(plate, plate + 3))
+    act = [h4.model.joints[h4.model.getJointId(n)].idx_v for n in h4.actuated_joint_names]
+    # Measured 2.1e-6 rad (any joint), 1.4e-6 rad (each actuator), 4.9e-7 m (plate): bounds /3 and x3.
+    assert 7e-7 < np.max(np.abs(angles)) < 6.3e-6
+    assert np.all((4.6e-7 < np.abs(step[act])) & (np.abs(step[act]) < 4.2e-6))
+    assert 1.6e-7 < np.max(np.abs(step[plate:plate + 3])) < 1.5e-6
+
+
 # ----------------------------------------------------------------- collision pairs
 def _pairs(geometry: pin.GeometryModel) -> set[frozenset[str]]:
     names = [g.name for g in geometry.geometryObjects]

@@ -326,7 +326,8 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
 
 
 def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, damping: float = DAMPING,
-                 solref: Any = ELASTIC_SOLREF, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP) -> Any:
+                 solref: Any = ELASTIC_SOLREF, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP,
+                 servo: bool = False) -> Any:
     """The elastic H4 (:func:`h4pin.elastic.elastic_model`) as a ``mujoco.MjSpec`` (not compiled).
 
     The robot of :func:`spec`, with every virtual elastic joint of the elastic model as a MuJoCo
@@ -362,6 +363,13 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
         solref, solimp: the closures' constraint parameters (MuJoCo's ``solref`` (time constant
             s, damping ratio) and ``solimp``).
         timestep: MuJoCo time step (s), > 0.
+        servo: keep the actuators' joints, driven by position servos instead of locked: each
+            actuator joint gets a ``position``-type actuator ``<joint>_servo`` (ctrl: the angle,
+            rad) of gain the ``actuator_i_elastic`` spring's stiffness (the servo and the
+            forearm's bending, which then has no joint of its own), and a ``velocity``-type
+            ``<joint>_damper`` (ctrl: the angle's rate, rad/s) of gain ``damping * stiffness``:
+            the same spring and damping, on the error to a commanded motion. The keyframe's
+            controls hold ``q``. For driving a motion (``tests/test_elastic_cycle.py``).
 
     Raises:
         MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO_ELASTIC`.
@@ -376,7 +384,7 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
     if not (np.isfinite(timestep) and timestep > 0):
         raise ParameterError(f"timestep: must be finite and > 0 (s), got {timestep!r}")
     q = _closed(h4, q)
-    plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep))
+    plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep), bool(servo))
     return _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
 
 
@@ -402,9 +410,10 @@ class _Plan:
     stiffness: dict[str, float]
     damping: float
     armature: dict[str, float]
+    servo: dict[str, float] = dataclasses.field(default_factory=dict)  # actuated joint -> servo stiffness
 
 
-def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _Plan:
+def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float, servo: bool = False) -> _Plan:
     """Where each virtual joint of the elastic model ``em`` goes in the MJCF tree of ``h4``."""
     from h4pin.elastic.modes import mass_model
 
@@ -420,7 +429,8 @@ def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _
     link_of = {0: next(f for f in frames if parent[f] == 0)}  # elastic joint -> link whose body it moves
     for f, j in own_joint.items():
         link_of[int(m.getJointId(rigid.names[j]))] = f
-    locked = {int(rigid.getJointId(n)) for n in em.locked}
+    locked = set() if servo else {int(rigid.getJointId(n)) for n in em.locked}
+    servos: dict[str, float] = {}
     heavy = mass_model(em)
     mass = {j: sum(heavy.inertias[k].mass for k in m.subtrees[j]) for j in virtual}
 
@@ -441,6 +451,10 @@ def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _
             axis = place.rotation @ _motion(jm)[3:] if _is_revolute(jm) else place.rotation @ _motion(jm)[:3]
             joints.append((m.names[k], _is_revolute(jm), world.actInv(place.translation), world.rotation.T @ axis))
         up = rigid.names[rigid.frames[link].parentJoint] if link in own_joint else None
+        if servo and up in em.locked and joints[0][0] == f"{up}_elastic":
+            servos[up] = em.stiffness[joints[0][0]]  # the servo's position gain: the spring itself
+            chains[names[-1]] = _Chain(link, joints[1:], in_link=len(joints) == 1)
+            continue
         if up is not None and own_joint[link] in locked and joints[0][0] == f"{up}_elastic":
             chains[start] = _Chain(link, joints[:1], in_link=True)  # the forearm turns on it
             if len(joints) == 1:
@@ -476,7 +490,7 @@ def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float) -> _
                 for k in virtual if not mass[k] > 0 and m.names[k] in kept}
     q_em = np.zeros(m.nq)
     q_em[em.q_index] = q
-    return _Plan(em, q_em, locked, chains, moved, sites, stiffness, damping, armature)
+    return _Plan(em, q_em, locked, chains, moved, sites, stiffness, damping, armature, servos)
 
 
 def _in_series(joints: list[tuple[str, bool, np.ndarray, np.ndarray]], stiffness: dict[str, float]
@@ -615,11 +629,31 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
     _add_closures(mujoco, s, h4, solref, solimp)
     if plan is None:
         _add_actuators(mujoco, s, h4)
+    elif plan.servo:
+        _add_servos(mujoco, s, h4, plan)
     _scene(model, s, mujoco, data)
     key = s.add_key()
     key.name = KEYFRAME
     key.qpos = _floats(qpos(h4, q)) if plan is None else _floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
+    if plan is not None and plan.servo:
+        angles = [q[model.joints[model.getJointId(n)].idx_q] for n in h4.actuated_joint_names]
+        key.ctrl = _floats(angles + [0.0] * len(angles))
     return s
+
+
+def _add_servos(mujoco: Any, s: Any, h4: Any, plan: _Plan) -> None:
+    """A position servo and a velocity damper on each actuated joint (:func:`elastic_spec`, ``servo``)."""
+    for kind in ("servo", "damper"):
+        for jname in h4.actuated_joint_names:
+            kp = plan.servo[jname]
+            gain = kp if kind == "servo" else plan.damping * kp
+            a = s.add_actuator()
+            a.name, a.trntype, a.target = f"{jname}_{kind}", mujoco.mjtTrn.mjTRN_JOINT, jname
+            a.gear = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            a.gaintype, a.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_AFFINE
+            a.gainprm = [gain] + [0.0] * 9
+            a.biasprm = [0.0, -gain, 0.0] + [0.0] * 7 if kind == "servo" else [0.0, 0.0, -gain] + [0.0] * 7
+            a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
 
 def _add_joint(mujoco: Any, body: Any, model: pin.Model, frame: Any, joint_id: int) -> None:

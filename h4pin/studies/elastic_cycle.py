@@ -1,0 +1,338 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The pick-and-place cycle on the elastic robot itself: the whole robot's loads, and its dynamics.
+
+:func:`h4pin.studies.cycle.run` loads eq. 30's K with the plate's weight and d'Alembert load
+alone. Here the robot is the elastic model of :func:`h4pin.elastic.elastic_model` (every
+compliance a virtual joint with a spring, the actuators locked at the commanded motion, the
+URDF's inertias of :func:`h4pin.elastic.modes.mass_model` and a point payload at D), driven by
+the rigid motion of the cycle. Along it, at each sample:
+
+1. the rigid motion (q, v, a) of the closed loop (:func:`h4pin.studies.cycle.sample`), carried to
+   the elastic model's coordinates, every virtual joint at rest;
+2. the load of every body: ``f = -rnea(q, v, a)`` (inertia and weight of the plate, payload,
+   forearms, crosses and bars);
+3. the springs' coordinates: the admissible small motions (closures kept, actuators locked) are
+   ``dq = T s``, s the deflection of each spring (one coordinate per spring: the structure is
+   statically determinate), so the stiffness is ``diag(k)`` and the load on spring i is
+   ``f_s = T^T f``: the force it carries. The actuator spring ``actuator_i_elastic`` carries the
+   whole motor torque (its control part ``f / kc``), each element its own load;
+4. quasi-static: ``s = f_s / k``; dynamic: ``M_s s'' + C s' + diag(k) s = f_s(t)`` with
+   ``M_s = T^T M T`` (M from ``pin.crba``), stiffness-proportional damping ``C = damping diag(k)``
+   (s; :data:`h4pin.io.mjcf.DAMPING` by default, the elastic MuJoCo file's), integrated by
+   Newmark's average acceleration from the static deflection at t = 0, through one cycle, then
+   held at rest at the end pose (the stop) until the residual vibration has settled.
+
+Linearised about the rigid motion: the deflection's own Coriolis and centrifugal terms, the
+geometric stiffness of the preload and the change of T and M within a sample step (linear
+interpolation) are neglected. ``tests/test_elastic_cycle.py`` checks the springs' loads against
+the rigid closed-loop inverse dynamics, the quasi-static answer against ``K Gamma_ext`` with
+massless legs, the legs' share of the motor torque against finite differences of their
+potential energy, the slow-cycle limit and the elastic MuJoCo model driving the same cycle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin.elastic import engine
+from h4pin.elastic.h4 import elastic_model
+from h4pin.elastic.modes import _admissible, mass_model
+from h4pin.errors import ParameterError
+from h4pin.kinematics import closed_form as cf
+from h4pin.robot import H4
+from h4pin.studies import cycle as rigid
+
+#: Stiffness-proportional damping (s) by default: the elastic MuJoCo file's (1 % at 32.7 Hz).
+DAMPING = 1e-4
+#: The settling band at the tool after the stop (m), and how long the stop is followed (s).
+BAND, HOLD = 50e-6, 1.5
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Springs:
+    """The elastic robot along a motion, in spring coordinates (SI).
+
+    Attributes:
+        names: (ns,) the springs (virtual joints), in the elastic model's order.
+        k: (ns,) their stiffness. kc: (4,) the actuators' servo stiffness.
+        actuators: (4,) index in ``names`` of each ``actuator_i_elastic`` spring.
+        t: (N,) s. load: (N, ns) ``f_s``, the force in each spring. mass: (N, ns, ns) ``M_s``.
+        output: (N, 8, ns) dtp per unit deflection of each spring (dtp = [dD, dOmega, domega_1,
+            domega_2]). rotation: (N, 3, 3) the central bar's orientation (the tool's offset).
+        torque: (N, 4) N.m, the motor torques of the rigid closed-loop inverse dynamics.
+        gamma: (N, 8) the plate's load Gamma_ext (weight and d'Alembert load of plate and payload).
+    """
+
+    names: tuple[str, ...]
+    k: np.ndarray
+    kc: np.ndarray
+    actuators: np.ndarray
+    t: np.ndarray
+    load: np.ndarray
+    mass: np.ndarray
+    output: np.ndarray
+    rotation: np.ndarray
+    torque: np.ndarray
+    gamma: np.ndarray
+
+    def static(self) -> np.ndarray:
+        """(N, ns) the quasi-static deflections ``f_s / k``."""
+        return self.load / self.k
+
+    def dtp(self, s: np.ndarray) -> np.ndarray:
+        """(N, 8) dtp of deflections s (N, ns)."""
+        return np.einsum("nij,nj->ni", self.output, s)
+
+    def tool(self, s: np.ndarray, offset: np.ndarray) -> np.ndarray:
+        """(N, 3) m, the displacement of the point ``offset`` (3,) m from D (central-bar frame)."""
+        d = self.dtp(s)
+        return d[:, :3] + np.cross(d[:, 3:6], np.einsum("nab,b->na", self.rotation, offset))
+
+    def control(self, s_load: np.ndarray | None = None) -> np.ndarray:
+        """(N, 8) dtp of the actuators' servos alone: each ``actuator_i_elastic`` spring's force
+        over kc (its bending part left out)."""
+        load = self.load if s_load is None else s_load
+        s = np.zeros_like(load)
+        s[:, self.actuators] = load[:, self.actuators] / self.kc
+        return self.dtp(s)
+
+
+def _velocity_map(rigid_model: pin.Model, model: pin.Model) -> np.ndarray:
+    """(rigid nv,) the elastic model's velocity index of each rigid velocity coordinate."""
+    out = np.empty(rigid_model.nv, dtype=int)
+    for j in range(1, rigid_model.njoints):
+        jr, je = rigid_model.joints[j], model.joints[model.getJointId(rigid_model.names[j])]
+        out[jr.idx_v:jr.idx_v + jr.nv] = np.arange(je.idx_v, je.idx_v + je.nv)
+    return out
+
+
+def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float = 0.0, *,
+                  legs: bool = True, gravity: np.ndarray | None = None) -> Springs:
+    """:class:`Springs` of the elastic robot (its elements included) along ``cycle`` at times
+    ``t`` (s), with a point ``payload`` (kg) at D. ``legs=False``: the forearms, crosses and bars
+    massless (only the plate and payload load the springs, as :func:`h4pin.studies.cycle.run`).
+
+    Raises:
+        UnreachablePoseError (and subclasses), SingularPoseError: as the cycle's poses.
+        ParameterError: a bad payload.
+    """
+    payload = rigid._positive("payload", payload, zero=True, unit=" (kg)")
+    em = elastic_model(h4)
+    mm = pin.Model(mass_model(em))
+    plate_joints = {em.model.getJointId(h4.model.names[j]) for j in _plate_joints(h4)}
+    if not legs:
+        for j in range(1, mm.njoints):
+            if j not in plate_joints:
+                mm.inertias[j] = pin.Inertia.Zero()
+    frame = mm.frames[mm.getFrameId("D")]
+    if payload > 0:
+        mm.inertias[frame.parentJoint] = mm.inertias[frame.parentJoint] + pin.Inertia(
+            payload, frame.placement.translation, np.zeros((3, 3)))
+    if gravity is not None:
+        mm.gravity = pin.Motion(np.asarray(gravity, dtype=float), np.zeros(3))
+    rigid_model = rigid.payload_model(h4, payload, gravity=gravity)
+    if not legs:
+        for j in range(1, rigid_model.njoints):
+            if em.model.getJointId(rigid_model.names[j]) not in plate_joints:
+                rigid_model.inertias[j] = pin.Inertia.Zero()
+    rows = _rows(h4, rigid_model, cycle, t)
+    vmap = _velocity_map(h4.model, mm)
+    names = tuple(n for n in em.stiffness)
+    dofs = np.array([mm.joints[mm.getJointId(n)].idx_v for n in names])
+    k = np.array([em.stiffness[n] for n in names])
+    kfull = engine.stiffness_vector(mm, em.stiffness)
+    kc = np.asarray(h4.geometry.springs["kc"], dtype=float)
+    actuators = np.array([names.index(f"{a}_elastic") for a in h4.actuated_joint_names])
+    d = mm.createData()
+    n_t, ns = len(t), len(names)
+    load, mass, output = np.empty((n_t, ns)), np.empty((n_t, ns, ns)), np.empty((n_t, 8, ns))
+    pose = cycle.sample(t)[0]
+    for i, row in enumerate(rows):
+        q = em.configuration(pose[i])
+        v, a = np.zeros(mm.nv), np.zeros(mm.nv)
+        v[vmap], a[vmap] = row.v, row.a
+        pin.computeJointJacobians(mm, d, q)
+        basis = _admissible(mm, em.constraint_models, q, em.locked, kfull, d)
+        if basis.shape[1] != ns:
+            raise ParameterError(f"the elastic robot has {basis.shape[1]} admissible motions for {ns} springs: "
+                                 "it is not statically determinate")
+        T = basis @ np.linalg.inv(basis[dofs])
+        jo = engine.output_jacobian(mm, d, em.outputs)
+        f = -pin.rnea(mm, d, q, v, a)
+        M = pin.crba(mm, d, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        load[i] = T.T @ f
+        mass[i] = T.T @ M @ T
+        output[i] = jo @ T
+    rotation = cf.rot_z(pose[:, 3])
+    return Springs(names, k, kc, actuators, np.asarray(t, dtype=float), load, mass, output, rotation,
+                   np.array([r.torque for r in rows]), np.array([r.load for r in rows]))
+
+
+def _rows(h4: H4, model: pin.Model, cycle: rigid.AdeptCycle, t: np.ndarray) -> list[rigid.Sample]:
+    data = model.createData()
+    pose, vel, acc = cycle.sample(t)
+    return [rigid.sample(h4, model, data, p, dv, da) for p, dv, da in zip(pose, vel, acc, strict=True)]
+
+
+def _plate_joints(h4: H4) -> list[int]:
+    """The rigid model's joints that carry the plate (its free flyer and the two lateral
+    revolutes): the subtree of the central bar."""
+    central = h4.model.parents[h4.index.jid_lat[0]]
+    return list(h4.model.subtrees[central])
+
+
+def newmark(mass: np.ndarray, k: np.ndarray, load: np.ndarray, dt: float, damping: float,
+            s0: np.ndarray | None = None, substeps: int = 4) -> np.ndarray:
+    """(N, ns) deflections of ``M(t) s'' + damping diag(k) s' + diag(k) s = f(t)`` at N equal
+    steps ``dt`` of the sampled mass (N, ns, ns) and load (N, ns), by Newmark's average
+    acceleration (unconditionally stable; ``substeps`` steps per sample, M and f linear in
+    between), from rest at ``s0`` (default: the static deflection of the first sample). Springs
+    that move no mass follow their load through the damping (a first-order lag)."""
+    beta, gamma = 0.25, 0.5
+    h = dt / substeps
+    K = np.diag(k)
+    C = damping * K
+    s = load[0] / k if s0 is None else np.array(s0, dtype=float)
+    v = np.zeros_like(s)
+    acc = np.linalg.pinv(mass[0]) @ (load[0] - k * s)  # at rest: M a = f - K s (0 at equilibrium)
+    out = np.empty_like(load)
+    out[0] = s
+    for n in range(len(load) - 1):
+        for j in range(1, substeps + 1):
+            w = j / substeps
+            mm = (1 - w) * mass[n] + w * mass[n + 1]
+            ff = (1 - w) * load[n] + w * load[n + 1]
+            rhs = ff + mm @ (s / (beta * h * h) + v / (beta * h) + (0.5 / beta - 1.0) * acc) \
+                + C @ (gamma * s / (beta * h) + (gamma / beta - 1.0) * v + h * (0.5 * gamma / beta - 1.0) * acc)
+            s_new = np.linalg.solve(K + gamma / (beta * h) * C + mm / (beta * h * h), rhs)
+            a_new = (s_new - s) / (beta * h * h) - v / (beta * h) - (0.5 / beta - 1.0) * acc
+            v = v + h * ((1.0 - gamma) * acc + gamma * a_new)
+            s, acc = s_new, a_new
+        out[n + 1] = s
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ElasticCycle:
+    """One cycle on the elastic robot and the stop after it (SI).
+
+    Attributes:
+        cycle: the :class:`h4pin.studies.cycle.AdeptCycle`; payload: kg at D; damping: s.
+        springs: the :class:`Springs` over the cycle and the hold (the last ``hold`` samples at
+            rest at the end pose).
+        t: (N,) s, from 0 to ``cycle.period + hold``. stop: index of t = period.
+        tool: (3,) m, the tool's offset from D (central-bar frame).
+        quasi_static, dynamic: (N, 3) m, the tool's displacement, quasi-static and dynamic.
+        control_whole, control_plate: (N, 3) m, the servos' part of the quasi-static displacement
+            of D, from the whole motor torque and from the plate's load alone (eq. 30's term).
+    """
+
+    cycle: rigid.AdeptCycle
+    payload: float
+    damping: float
+    springs: Springs
+    t: np.ndarray
+    stop: int
+    tool: np.ndarray
+    quasi_static: np.ndarray
+    dynamic: np.ndarray
+    control_whole: np.ndarray
+    control_plate: np.ndarray
+
+    @property
+    def peak_quasi_static(self) -> float:
+        """m, the largest |tool displacement| over the cycle, quasi-static."""
+        return float(np.linalg.norm(self.quasi_static[:self.stop + 1], axis=1).max())
+
+    @property
+    def peak_dynamic(self) -> float:
+        """m, the largest |tool displacement| over the cycle and the stop, dynamic."""
+        return float(np.linalg.norm(self.dynamic, axis=1).max())
+
+    @property
+    def residual(self) -> np.ndarray:
+        """(N - stop,) m, |dynamic - static| at the tool after the stop (the static sag at rest
+        taken away)."""
+        return np.linalg.norm(self.dynamic[self.stop:] - self.quasi_static[self.stop:], axis=1)
+
+    @property
+    def settling_time(self) -> float:
+        """s after the stop until the residual stays within :data:`BAND` (inf if it does not
+        within the hold)."""
+        r = self.residual
+        out = np.flatnonzero(r > BAND)
+        if not out.size:
+            return 0.0
+        if out[-1] == len(r) - 1:
+            return math.inf
+        return float(self.t[self.stop + out[-1] + 1] - self.t[self.stop])
+
+
+def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400, damping: float = DAMPING,
+        hold: float = HOLD, tool: np.ndarray | None = None, **cycle_options: Any) -> ElasticCycle:
+    """The standard cycle of ``period`` s with ``payload`` kg on the elastic robot (module
+    docstring): quasi-static and dynamic tool displacement, and the stop after it.
+
+    Raises:
+        ParameterError: a bad argument. UnreachablePoseError, SingularPoseError: as the cycle.
+    """
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
+        raise ParameterError(f"samples must be an integer >= 8, got {samples!r}")
+    damping = rigid._positive("damping", damping, zero=True, unit=" (s)")
+    hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
+    cycle = rigid.adept_cycle(h4, period, **cycle_options)
+    dt = cycle.period / samples
+    n_hold = int(math.ceil(hold / dt))
+    t = np.arange(samples + 1 + n_hold) * dt
+    sp = springs_along(h4, cycle, t[:samples + 1], payload)
+    # the stop: at rest at the end pose (the start pose) for the hold, the last sample repeated
+    stay = np.r_[np.arange(samples + 1), np.full(n_hold, samples)]
+    sp = dataclasses.replace(sp, t=t, **{f: getattr(sp, f)[stay] for f in (
+        "load", "mass", "output", "rotation", "torque", "gamma")})
+    cyc = np.minimum(t, cycle.period)
+    o = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
+    if o.shape != (3,) or not np.all(np.isfinite(o)):
+        raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
+    static = sp.static()
+    dyn = newmark(sp.mass, sp.k, sp.load, dt, damping)
+    plate = np.einsum("nij,nj->ni", _control_term(h4, cycle.sample(cyc)[0]), sp.gamma)
+    return ElasticCycle(cycle, float(payload), float(damping), sp, t, samples, o, sp.tool(static, o),
+                        sp.tool(dyn, o), sp.control()[:, :3], plate[:, :3])
+
+
+def _control_term(h4: H4, poses: np.ndarray) -> np.ndarray:
+    """(N, 8, 8) the control term of eq. 30 (consistent model) at the poses."""
+    from h4pin.stiffness.api import compliance
+
+    return compliance(h4, poses, "consistent", terms=True, elements=False).terms["control"]
+
+
+def chart(h4: H4, periods: Sequence[float] = (0.3, 0.4, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0),
+          payloads: Sequence[float] = (0.0, 0.5, 1.0), samples: int = 200, damping: float = DAMPING,
+          hold: float = 4.0, progress: Any = None) -> dict[str, np.ndarray]:
+    """Peak tool displacement (quasi-static and dynamic), residual amplitude and settling time
+    after the stop (followed for ``hold`` s), for each cycle time and payload: arrays
+    (len(payloads), len(periods)); ``progress(a, b, result)`` after each run."""
+    shape = (len(payloads), len(periods))
+    out = {name: np.empty(shape) for name in ("quasi_static", "dynamic", "residual", "settling")}
+    for a, m in enumerate(payloads):
+        for b, p in enumerate(periods):
+            r = run(h4, p, m, samples=samples, damping=damping, hold=hold)
+            out["quasi_static"][a, b] = r.peak_quasi_static
+            out["dynamic"][a, b] = r.peak_dynamic
+            out["residual"][a, b] = r.residual.max()
+            out["settling"][a, b] = r.settling_time
+            if progress is not None:
+                progress(a, b, r)
+    out["periods"], out["payloads"] = np.asarray(periods, float), np.asarray(payloads, float)
+    return out
+
+
+__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "Springs", "chart", "newmark", "run", "springs_along"]
