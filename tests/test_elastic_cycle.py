@@ -87,14 +87,14 @@ def test_newmark_of_one_spring_is_the_textbook_step_response():
     sin wd t)), w = sqrt(k/m), z = a w / 2; and a massless spring is the first-order lag."""
     m, k, a, f = 0.3, 4.0e4, 2e-4, 10.0
     n, dt = 2000, 1e-4
-    x = ec.newmark(np.full((n, 1, 1), m), np.array([k]), np.full((n, 1), f), dt, a, s0=np.zeros(1), substeps=4)
+    x = rigid.newmark(np.full((n, 1, 1), m), np.array([k]), np.full((n, 1), f), dt, a, s0=np.zeros(1), substeps=4)
     w = math.sqrt(k / m)
     z = a * w / 2
     wd = w * math.sqrt(1 - z * z)
     t = np.arange(n) * dt
     exact = f / k * (1 - np.exp(-z * w * t) * (np.cos(wd * t) + z / math.sqrt(1 - z * z) * np.sin(wd * t)))
     assert np.abs(x[:, 0] - exact).max() < 2e-3 * f / k
-    lag = ec.newmark(np.zeros((n, 1, 1)), np.array([k]), np.full((n, 1), f), dt, a, s0=np.zeros(1), substeps=4)
+    lag = rigid.newmark(np.zeros((n, 1, 1)), np.array([k]), np.full((n, 1), f), dt, a, s0=np.zeros(1), substeps=4)
     # the lag's time constant a is 8 Newmark steps here: the trapezoidal rule is 10 % off in the
     # first step, 1e-3 after five time constants
     lagged = f / k * (1 - np.exp(-t / a))

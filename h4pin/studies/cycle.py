@@ -430,40 +430,57 @@ def cycle_dynamics(h4: H4, cycle: AdeptCycle, t: np.ndarray, payload: float = 0.
     return [sample(h4, model, data, p, dv, da) for p, dv, da in zip(pose, vel, acc, strict=True)]
 
 
+def newmark(mass: np.ndarray, stiffness: np.ndarray, load: np.ndarray, dt: float, damping: float,
+            s0: np.ndarray | None = None, substeps: int = 4) -> np.ndarray:
+    """(N, n) the response of ``M(t) s'' + damping K(t) s' + K(t) s = f(t)`` at N equal steps
+    ``dt`` of the sampled mass (N, n, n), stiffness (N, n, n), or (n,) for a constant diagonal
+    one, and load (N, n), by Newmark's average acceleration (unconditionally stable; ``substeps``
+    steps per sample, M, K and f linear in between), from rest at ``s0`` (default: the static
+    answer of the first sample). Coordinates that move no mass follow their load through the
+    damping (a first-order lag)."""
+    beta, gamma = 0.25, 0.5
+    h = dt / substeps
+    diagonal = np.ndim(stiffness) == 1
+    stiff = (lambda n: np.diag(stiffness)) if diagonal else (lambda n: stiffness[n])
+    s = np.linalg.solve(stiff(0), load[0]) if s0 is None else np.array(s0, dtype=float)
+    v = np.zeros_like(s)
+    acc = np.linalg.pinv(mass[0]) @ (load[0] - stiff(0) @ s)  # at rest: M a = f - K s (0 at equilibrium)
+    out = np.empty_like(load)
+    out[0] = s
+    for n in range(len(load) - 1):
+        k0, k1 = stiff(n), stiff(n + 1)
+        for j in range(1, substeps + 1):
+            w = j / substeps
+            mm = (1 - w) * mass[n] + w * mass[n + 1]
+            kk = (1 - w) * k0 + w * k1
+            ff = (1 - w) * load[n] + w * load[n + 1]
+            cc = damping * kk
+            rhs = ff + mm @ (s / (beta * h * h) + v / (beta * h) + (0.5 / beta - 1.0) * acc) \
+                + cc @ (gamma * s / (beta * h) + (gamma / beta - 1.0) * v + h * (0.5 * gamma / beta - 1.0) * acc)
+            s_new = np.linalg.solve(kk + gamma / (beta * h) * cc + mm / (beta * h * h), rhs)
+            a_new = (s_new - s) / (beta * h * h) - v / (beta * h) - (0.5 / beta - 1.0) * acc
+            v = v + h * ((1.0 - gamma) * acc + gamma * a_new)
+            s, acc = s_new, a_new
+        out[n + 1] = s
+    return out
+
+
 def dynamic_deflection(compliance_matrix: np.ndarray, inertia: np.ndarray, load: np.ndarray, period: float,
                        damping: float = 0.05, periods: int = 4, substeps: int = 4) -> np.ndarray:
     """dtp (N + 1, 8) of ``M x'' + C x' + K^-1 x = Gamma_ext(t)``: the plate (inertia ``M`` in dtp
     coordinates) on the massless elastic legs, under the load sampled at N + 1 equal steps of one
-    period (the last sample repeating the first), integrated over ``periods`` periods by Newmark's
-    average acceleration (``substeps`` steps per sample, matrices and load interpolated linearly)
-    from the static deflection of the first sample; the last period is returned. Damping is
-    stiffness-proportional, ``C = 2 damping / omega_1 K^-1``: ratio ``damping`` at the lowest
-    natural frequency omega_1 of the first sample, more above it."""
+    period (the last sample repeating the first), integrated over ``periods`` periods by
+    :func:`newmark` (``substeps`` steps per sample) from the static deflection of the first
+    sample; the last period is returned. Damping is stiffness-proportional,
+    ``C = 2 damping / omega_1 K^-1``: ratio ``damping`` at the lowest natural frequency omega_1 of
+    the first sample, more above it."""
     stiff = np.linalg.inv(compliance_matrix)
     n = len(load) - 1
     omega1 = 2.0 * math.pi * _natural_frequency(stiff[0], inertia[0])
-    beta, gamma = 0.25, 0.5
-    dt = period / (n * substeps)
-    x = compliance_matrix[0] @ load[0]
-    v = np.zeros(8)
-    acc = np.zeros(8)  # the first sample is at rest: static equilibrium
-    out = np.empty_like(load)
-    for p in range(periods):
-        for k in range(n):
-            for j in range(1, substeps + 1):
-                w = j / substeps
-                kk = (1 - w) * stiff[k] + w * stiff[k + 1]
-                mm = (1 - w) * inertia[k] + w * inertia[k + 1]
-                ff = (1 - w) * load[k] + w * load[k + 1]
-                cc = (2.0 * damping / omega1) * kk
-                rhs = ff + mm @ (x / (beta * dt * dt) + v / (beta * dt) + (0.5 / beta - 1.0) * acc) \
-                    + cc @ (gamma * x / (beta * dt) + (gamma / beta - 1.0) * v + dt * (0.5 * gamma / beta - 1.0) * acc)
-                x_new = np.linalg.solve(kk + gamma / (beta * dt) * cc + mm / (beta * dt * dt), rhs)
-                a_new = (x_new - x) / (beta * dt * dt) - v / (beta * dt) - (0.5 / beta - 1.0) * acc
-                v = v + dt * ((1.0 - gamma) * acc + gamma * a_new)
-                x, acc = x_new, a_new
-            if p == periods - 1:
-                out[k + 1] = x
+    every = np.r_[np.tile(np.arange(n), periods), n]
+    x = newmark(inertia[every], stiff[every], load[every], period / n, 2.0 * damping / omega1,
+                s0=compliance_matrix[0] @ load[0], substeps=substeps)
+    out = x[-(n + 1):].copy()
     out[0] = out[-1]
     return out
 
@@ -643,5 +660,5 @@ def write_figure(result: CycleResult, path: str | Path, others: Sequence[CycleRe
 
 
 __all__ = ["HEIGHT", "LENGTH", "AdeptCycle", "CycleResult", "Sample", "adept_cycle", "check_reachable",
-           "closure_drift", "closure_rows", "cycle_dynamics", "dynamic_deflection", "payload_model", "quintic",
-           "report", "run", "sample", "write_figure"]
+           "closure_drift", "closure_rows", "cycle_dynamics", "dynamic_deflection", "newmark", "payload_model",
+           "quintic", "report", "run", "sample", "write_figure"]

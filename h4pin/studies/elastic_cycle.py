@@ -188,37 +188,6 @@ def _plate_joints(h4: H4) -> list[int]:
     return list(h4.model.subtrees[central])
 
 
-def newmark(mass: np.ndarray, k: np.ndarray, load: np.ndarray, dt: float, damping: float,
-            s0: np.ndarray | None = None, substeps: int = 4) -> np.ndarray:
-    """(N, ns) deflections of ``M(t) s'' + damping diag(k) s' + diag(k) s = f(t)`` at N equal
-    steps ``dt`` of the sampled mass (N, ns, ns) and load (N, ns), by Newmark's average
-    acceleration (unconditionally stable; ``substeps`` steps per sample, M and f linear in
-    between), from rest at ``s0`` (default: the static deflection of the first sample). Springs
-    that move no mass follow their load through the damping (a first-order lag)."""
-    beta, gamma = 0.25, 0.5
-    h = dt / substeps
-    K = np.diag(k)
-    C = damping * K
-    s = load[0] / k if s0 is None else np.array(s0, dtype=float)
-    v = np.zeros_like(s)
-    acc = np.linalg.pinv(mass[0]) @ (load[0] - k * s)  # at rest: M a = f - K s (0 at equilibrium)
-    out = np.empty_like(load)
-    out[0] = s
-    for n in range(len(load) - 1):
-        for j in range(1, substeps + 1):
-            w = j / substeps
-            mm = (1 - w) * mass[n] + w * mass[n + 1]
-            ff = (1 - w) * load[n] + w * load[n + 1]
-            rhs = ff + mm @ (s / (beta * h * h) + v / (beta * h) + (0.5 / beta - 1.0) * acc) \
-                + C @ (gamma * s / (beta * h) + (gamma / beta - 1.0) * v + h * (0.5 * gamma / beta - 1.0) * acc)
-            s_new = np.linalg.solve(K + gamma / (beta * h) * C + mm / (beta * h * h), rhs)
-            a_new = (s_new - s) / (beta * h * h) - v / (beta * h) - (0.5 / beta - 1.0) * acc
-            v = v + h * ((1.0 - gamma) * acc + gamma * a_new)
-            s, acc = s_new, a_new
-        out[n + 1] = s
-    return out
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class ElasticCycle:
     """One cycle on the elastic robot and the stop after it (SI).
@@ -301,7 +270,7 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     if o.shape != (3,) or not np.all(np.isfinite(o)):
         raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
     static = sp.static()
-    dyn = newmark(sp.mass, sp.k, sp.load, dt, damping)
+    dyn = rigid.newmark(sp.mass, sp.k, sp.load, dt, damping)
     plate = np.einsum("nij,nj->ni", _control_term(h4, cycle.sample(cyc)[0]), sp.gamma)
     return ElasticCycle(cycle, float(payload), float(damping), sp, t, samples, o, sp.tool(static, o),
                         sp.tool(dyn, o), sp.control()[:, :3], plate[:, :3])
@@ -335,4 +304,4 @@ def chart(h4: H4, periods: Sequence[float] = (0.3, 0.4, 0.5, 0.75, 1.0, 1.5, 2.0
     return out
 
 
-__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "Springs", "chart", "newmark", "run", "springs_along"]
+__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "Springs", "chart", "run", "springs_along"]
