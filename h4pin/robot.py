@@ -23,8 +23,10 @@ constraints (``pin.PointAnchorConstraintModel``); :attr:`H4.constraint_models` k
 
 from __future__ import annotations
 
+import os
 import threading
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -39,6 +41,7 @@ from h4pin.description.params import VARIANTS, H4Params
 from h4pin.description.reader import read
 from h4pin.description.urdf import decode, parse, to_urdf
 from h4pin.errors import H4Error, MalformedURDFError, ParameterError, URDFNotFoundError
+from h4pin.inputs import check_real, describe, real_array, short
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
@@ -129,14 +132,17 @@ def disable_collisions_xml(pairs: tuple[DisabledCollision, ...], indent: str = "
             f"reason={quoteattr(p.reason)}/>" for p in pairs]
 
 
-def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any] | None = None,
+def load(source: str | bytes | Path | H4Params = "prototype", *, springs: dict[str, Any] | None = None,
          elements: Elements | dict[str, Any] | None = None, bar_clearance: float = BAR_CLEARANCE) -> H4:
-    """Load an H4: a variant name, a path to a URDF file, or an :class:`H4Params`.
+    """Load an H4: a variant name, a path to a URDF file, the URDF's text, or an :class:`H4Params`.
 
     Args:
         source: ``"prototype"`` (default), ``"symmetric"``, ``"toleranced"``, ``"measured_match"`` (see
             :data:`h4pin.VARIANTS`), a path to any H4 URDF (an existing file is always taken as
-            a path), or parameters (the URDF is then generated in memory).
+            a path), the URDF's XML text itself (a ``str`` or ``bytes`` whose first character
+            after white space is ``<``, as Pinocchio's ``buildModelFromXML`` takes; its
+            :attr:`H4.source` is ``"URDF text"``), or parameters (the URDF is then generated in
+            memory).
         springs: Spring data given or overridden at load, by H4Params field name: ``kc``, ``E``,
             ``I``, ``G``, ``I0``, ``forearm_stressed_fraction`` (a scalar or 4 values, one per
             leg), ``Sb``, ``Eb`` (a scalar or 8 values, one per bar).
@@ -145,39 +151,96 @@ def load(source: str | Path | H4Params = "prototype", *, springs: dict[str, Any]
         bar_clearance: m, the smallest distance allowed between the axes of bars of two legs.
 
     Raises:
-        ParameterError: unknown variant name (the message lists them), bad ``springs`` or
-            ``elements``.
-        URDFNotFoundError: the path does not exist.
-        MalformedURDFError: the file does not describe an H4 (the message names the element).
+        ParameterError: unknown variant name (the message lists them), a ``source`` of another
+            type, bad ``springs``, ``elements`` or ``bar_clearance`` (each named, with what it got).
+        URDFNotFoundError: the path does not exist (or cannot be read).
+        MalformedURDFError: the file or text does not describe an H4 (the message names the element).
     """
+    # The door (issue 30): the options' types before any reading (a bad one costs no URDF parse).
+    springs = _as_springs(springs)
+    elements = None if elements is None else _as_elements(elements)
+    bar_clearance = check_real(bar_clearance, "bar_clearance", minimum=0.0, unit="m")
+    options = {"springs": springs, "elements": elements, "bar_clearance": bar_clearance}
     if isinstance(source, H4Params):
-        return H4(to_urdf(source), "<H4Params>", springs=springs, elements=elements, bar_clearance=bar_clearance)
-    if not isinstance(source, (str, Path)):
-        raise ParameterError(f"source must be a variant name, a path or an H4Params, got {type(source).__name__}")
-    path = Path(source)
-    if not path.is_file():
-        text_source = str(source)
+        return H4(to_urdf(source), "<H4Params>", **options)
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        data = bytes(source)
+        if data.lstrip(_XML_SPACE.encode()).startswith((b"<", b"\xef\xbb\xbf")):  # XML text (or a UTF-8 BOM)
+            return H4(_xml_text(decode(data, URDF_TEXT)), URDF_TEXT, **options)
+        source = os.fsdecode(data)  # a path or a variant name
+    elif isinstance(source, str) and source.lstrip(_XML_START).startswith("<"):
+        return H4(_xml_text(source), URDF_TEXT, **options)
+    if not isinstance(source, (str, os.PathLike)):
+        raise ParameterError(f"source must be a variant name, a path, the URDF's text or an H4Params, "
+                             f"got {describe(source)}")
+    try:
+        text_source = source if isinstance(source, str) else os.fsdecode(os.fspath(source))
+    except (TypeError, ValueError):  # a PathLike whose __fspath__ gives no path
+        raise ParameterError(f"source: a path-like object without a path, got {describe(source)}") from None
+    path = Path(text_source)
+    try:
+        found = path.is_file()
+    except (OSError, ValueError):  # a name too long for a path, a NUL byte
+        found = False
+    if not found:
         if isinstance(source, str) and text_source in VARIANTS:
             path = variant_path(text_source)
-        elif isinstance(source, Path) or text_source.endswith(".urdf") or "/" in text_source:
-            raise URDFNotFoundError(f"no URDF file at {path}")
+        elif isinstance(source, os.PathLike) or text_source.endswith(".urdf") or "/" in text_source:
+            where = text_source if len(text_source) <= 200 else short(text_source)
+            raise URDFNotFoundError(f"no URDF file at {where}")
         else:
-            raise ParameterError(f"unknown H4 variant {text_source!r}; available: {', '.join(sorted(VARIANTS))} "
-                                 "(or pass a path to a URDF, or an H4Params)")
-    return H4(decode(path.read_bytes(), str(path)), str(path), springs=springs, elements=elements,
-              bar_clearance=bar_clearance)
+            raise ParameterError(f"unknown H4 variant {short(text_source)}; available: {', '.join(sorted(VARIANTS))} "
+                                 "(or pass a path to a URDF, its text, or an H4Params)")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:  # permissions, a file gone since is_file
+        raise URDFNotFoundError(f"cannot read the URDF file at {path}: {exc.strerror or exc}") from None
+    return H4(decode(data, str(path)), str(path), **options)
+
+
+#: :attr:`H4.source` of a robot loaded from the URDF's text (``load(text)``).
+URDF_TEXT = "URDF text"
+_XML_SPACE = " \t\r\n"
+_XML_START = "\ufeff" + _XML_SPACE  # what may come before the first "<" of URDF text
+
+
+def _xml_text(text: str) -> str:
+    """URDF text as :func:`load` keeps it: without a leading byte-order mark or white space, which
+    XML allows before the root but not before a declaration (Pinocchio's reader skips them too)."""
+    return text.lstrip(_XML_START)
+
+
+def _as_springs(springs: Any) -> dict[str, np.ndarray] | None:
+    """``load(..., springs=)``: None or a dict of field name -> real number(s), the values as float
+    arrays (the reader checks the names, sizes and values); else a :class:`ParameterError`."""
+    if springs is None:
+        return None
+    if not isinstance(springs, Mapping):
+        raise ParameterError(f"springs must be a dict of H4Params spring fields or None, got {describe(springs)}")
+    out = {}
+    for name, value in springs.items():
+        if not isinstance(name, str):
+            raise ParameterError(f"springs: a field name must be a str, got {describe(name)}")
+        out[name] = real_array(value, f"springs[{name!r}]", ParameterError)
+    return out
 
 
 def _as_elements(elements: Elements | dict[str, Any]) -> Elements:
     if isinstance(elements, Elements):
         return elements
-    if isinstance(elements, dict):
+    if isinstance(elements, Mapping):
+        for name in elements:
+            if not isinstance(name, str):
+                raise ParameterError(f"elements: a field name must be a str, got {describe(name)}")
         unknown = set(elements) - set(ELEMENTS)
         if unknown:
             raise ParameterError(f"elements: unknown field(s) {', '.join(sorted(unknown))}; "
                                  f"known: {', '.join(ELEMENTS)}")
-        return Elements(**elements)
-    raise ParameterError(f"elements must be an h4pin.Elements or a dict of its fields, got {type(elements).__name__}")
+        try:
+            return Elements(**elements)
+        except ParameterError as exc:  # the field's own message, said to be of this argument
+            raise ParameterError(f"elements: {exc}") from None
+    raise ParameterError(f"elements must be an h4pin.Elements or a dict of its fields, got {describe(elements)}")
 
 
 class H4:

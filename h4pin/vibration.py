@@ -10,12 +10,14 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from h4pin import verdicts
-from h4pin.elastic.h4 import ElasticH4
+from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.modes import Modes, Payload
 from h4pin.elastic.modes import modes as pinocchio_modes
 from h4pin.errors import ParameterError
+from h4pin.inputs import check_choice, check_flag, describe, real_array
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.robot import H4
 from h4pin.stiffness import kernel
@@ -28,7 +30,7 @@ def _robot(robot: Any):
         return robot.robot
     if isinstance(robot, H4):
         return robot
-    raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {type(robot).__name__}")
+    raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {describe(robot)}")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -84,18 +86,27 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
         NaN, with their status).
 
     Raises:
-        PoseError, UnreachablePoseError (and subclasses), UnrestrainedMotionError: one pose the
-        robot cannot take or that is singular (a batch gives NaN and the status instead).
-        ParameterError: a bad method, payload or robot.
+        PoseError: ``pose`` is not real numbers of shape (4,) or (N, 4) (bools, text, ``None``,
+            complex numbers and masked arrays are refused) or not finite.
+        UnreachablePoseError (and subclasses), UnrestrainedMotionError: one pose the robot cannot
+            take or that is singular (a batch gives NaN and the status instead).
+        ParameterError: a bad robot, method, payload, link_inertias (not a bool) or data (not a
+            ``pin.Data`` of the elastic model), each named.
     """
-
-    if method not in METHODS:
-        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+    h4 = _robot(robot)  # the door (issue 30): every argument's type before any work
+    method = check_choice(method, METHODS, "method")
+    link_inertias = check_flag(link_inertias, "link_inertias")
     if payload is not None and not isinstance(payload, Payload):
-        raise ParameterError(f"payload must be an h4pin.Payload or None, got {type(payload).__name__}")
-    h4 = _robot(robot)
-    x = as_poses(pose).copy()
+        raise ParameterError(f"payload must be an h4pin.Payload or None, got {describe(payload)}")
+    x = as_poses(real_array(pose, "pose")).copy()
     x.setflags(write=False)
+    if data is not None:
+        if not isinstance(data, pin.Data):
+            raise ParameterError(f"data must be a pinocchio.Data of the elastic model or None, got {describe(data)}")
+        robot = robot if isinstance(robot, ElasticH4) else elastic_model(robot)  # built once, not per pose
+        if len(data.oMi) != robot.model.njoints:
+            raise ParameterError(f"data must be a pinocchio.Data of the elastic model ({robot.model.njoints} joints), "
+                                 f"got one of {len(data.oMi)} joints")
     compiled = h4.geometry.ideal and method != "pinocchio" and (
         method == "compiled" or (FREQUENCIES.ready and kernel.ONE.ready and kernel.BATCH.ready))
     if method == "compiled" and not h4.geometry.ideal:

@@ -131,18 +131,24 @@ def check_elements(values: dict[str, Any], error: type[Exception] = ParameterErr
                    owners: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
     """Element data as float arrays (scalars broadcast to :data:`COUNTS`): compliances finite and
     >= 0, rigidities (:data:`RIGIDITIES`) > 0 (``inf``: rigid); otherwise ``error`` naming the
-    element (and ``owners[name][index]``)."""
+    element (and ``owners[name][index]``). A value must be real numbers: bools (``True`` is not
+    a compliance), text, ``None``, complex numbers and masked arrays are refused, naming the field."""
+    from h4pin.inputs import describe, real_array  # h4pin.inputs imports nothing of h4pin.description
+
     out = {}
     prefix = f"{where}: " if where else ""
     for name in ELEMENTS:
         rigidity = name in RIGIDITIES
         raw = values.get(name, np.inf if rigidity else 0.0)
         n = COUNTS[name]
+        what = f"a real number or {n} of them ({UNITS[name]})"
+        if isinstance(raw, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in raw):
+            raise error(f"{prefix}{name} must be {what} (not bools), got {describe(raw)}")
+        arr = real_array(raw, f"{prefix}{name}", error, what)
         try:
-            arr = np.array(raw, dtype=float)
             arr = np.broadcast_to(arr, (n,)).copy()
-        except (TypeError, ValueError):
-            raise error(f"{prefix}{name} must be a real number or {n} of them, got {raw!r}") from None
+        except ValueError:
+            raise error(f"{prefix}{name} must be {what}, got {describe(raw)}") from None
         bad = np.isnan(arr) | (arr <= 0.0) if rigidity else ~np.isfinite(arr) | (arr < 0.0)
         if np.any(bad):
             k = int(np.argmax(bad))

@@ -168,7 +168,14 @@ def elastic_model(h4) -> ElasticH4:
     Returns:
         An :class:`ElasticH4`; ``elastic_model(h4).compliance(pose)`` equals
         ``h4pin.compliance(h4, pose, model="consistent").matrix``.
+
+    Raises:
+        ParameterError: ``h4`` is not an :class:`h4pin.H4`.
     """
+    from h4pin.inputs import check_instance
+    from h4pin.robot import H4
+
+    check_instance(h4, H4, "h4", "an h4pin.H4 (from h4pin.load)")  # the door (issue 30)
     m, g, el, ix = h4.model, h4.geometry, h4.elements, h4.index
     d = m.createData()
     pin.framesForwardKinematics(m, d, pin.neutral(m))

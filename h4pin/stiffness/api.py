@@ -41,8 +41,10 @@ import numpy as np
 
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.errors import LoadError, ParameterError
+from h4pin.inputs import check_choice, check_flag, check_instance, describe, real_array
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
+from h4pin.robot import H4
 from h4pin.stiffness import kernel
 from h4pin.stiffness.eq30 import MODELS, TERMS, Raw
 from h4pin.stiffness.matrices import R_CONSISTENT, R_PAPER, Matrices, from_kinematics, n_matrix
@@ -53,11 +55,12 @@ from h4pin.verdicts import INVALID, OK, SINGULAR, SINGULAR_COND, raise_for_statu
 BACKENDS = {"kernel": "h4pin.stiffness.kernel", "closed_form": "h4pin.stiffness.numpy_backend",
             "pinocchio": "h4pin.stiffness.pinocchio"}
 METHODS = ("auto", *BACKENDS)
+ON_ERRORS = ("raise", "nan")
 _BATCH_CHUNK = 8192
 _F64 = np.dtype(np.float64)
 
-__all__ = ["BACKENDS", "METHODS", "MODELS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS", "Compliance",
-           "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
+__all__ = ["BACKENDS", "METHODS", "MODELS", "ON_ERRORS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS",
+           "Compliance", "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
 
 
 class LazyTerms(Mapping):
@@ -179,13 +182,8 @@ class Compliance:
         theta = np.asarray(self.pose)[..., 3]
         rot = cf.rot_z(theta)
 
-        def transform(o: np.ndarray) -> np.ndarray:
-            if np.iscomplexobj(o):
-                raise ParameterError(f"a point offset must be real numbers (m), got {o!r}")
-            try:
-                o = np.asarray(o, dtype=float)
-            except (TypeError, ValueError):
-                raise ParameterError(f"a point offset must be numbers (m), got {o!r}") from None
+        def transform(o: np.ndarray, name: str) -> np.ndarray:
+            o = real_array(o, name, ParameterError, "real numbers (m)")
             if o.shape[-1:] != (3,) or o.ndim > 2:
                 raise ParameterError(f"a point offset must have shape (3,) or (N, 3), got shape {o.shape}")
             if not np.all(np.isfinite(o)):
@@ -196,8 +194,8 @@ class Compliance:
             t[..., :, 3:] = -np.swapaxes(cf.cross(r[..., None, :], np.eye(3)), -1, -2)  # -[r]x
             return t
 
-        tp = transform(offset)
-        tq = tp if load_at is None else transform(load_at)
+        tp = transform(offset, "offset")
+        tq = tp if load_at is None else transform(load_at, "load_at")
         return tp @ self.matrix[..., :6, :6] @ np.swapaxes(tq, -1, -2)
 
 
@@ -206,10 +204,7 @@ _FIELDS = tuple(f.name for f in dataclasses.fields(Compliance))
 
 def as_load(load: Any) -> np.ndarray:
     """A force F (3,) or a full Gamma_ext = [F, T, t1, t2] (8,) as Gamma_ext (8,), SI."""
-    try:
-        g = np.asarray(load, dtype=float)
-    except (TypeError, ValueError):
-        raise LoadError(f"load must be numbers: a force F (3,) in N or Gamma_ext (8,), got {load!r}") from None
+    g = real_array(load, "load", LoadError, "real numbers: a force F (3,) in N or Gamma_ext (8,)")
     if g.shape == (3,):
         g = np.r_[g, np.zeros(5)]
     if g.shape != (8,) or not np.all(np.isfinite(g)):
@@ -228,12 +223,19 @@ def matrices_at(h4, pose: np.ndarray) -> Matrices:
 
 
 def _check_options(model: str, on_error: str, method: str) -> None:
-    if model not in MODELS:
-        raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
-    if on_error not in ("raise", "nan"):
-        raise ParameterError(f"on_error must be 'raise' or 'nan', got {on_error!r}")
-    if method not in METHODS:
-        raise ParameterError(f"method must be one of {METHODS}, got {method!r}")
+    """The options of :func:`compliance`: each a ``str`` among its names, else a :class:`ParameterError`."""
+    check_choice(model, MODELS, "model")
+    check_choice(on_error, ON_ERRORS, "on_error")
+    check_choice(method, METHODS, "method")
+
+
+def _check_call(h4: Any, model: Any, on_error: Any, method: Any, terms: Any) -> tuple[str, str, str, bool | None]:
+    """The arguments of :func:`compliance` other than the pose and ``elements`` (the slow side of its
+    door: a subclass, a ``numpy.str_`` or a ``numpy.bool_`` passes, as plain values; anything
+    else is a :class:`ParameterError` naming the argument)."""
+    check_instance(h4, H4, "h4", "an h4pin.H4 (from h4pin.load)")
+    return (check_choice(model, MODELS, "model"), check_choice(on_error, ON_ERRORS, "on_error"),
+            check_choice(method, METHODS, "method"), check_flag(terms, "terms", none=True))
 
 
 def _elements_of(h4, elements: Elements | bool | None) -> Elements | None:
@@ -244,9 +246,11 @@ def _elements_of(h4, elements: Elements | bool | None) -> Elements | None:
         return None
     elif isinstance(elements, Elements):
         active = elements
+    elif isinstance(elements, np.bool_):
+        return _elements_of(h4, bool(elements))
     else:
         raise ParameterError(f"elements must be None (the robot's own), False (eq. 30 alone) or an h4pin.Elements, "
-                             f"got {type(elements).__name__}")
+                             f"got {describe(elements)}")
     return None if active.off else active
 
 
@@ -284,8 +288,20 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
 
     Returns:
         A :class:`Compliance`.
+
+    Raises:
+        ParameterError: ``h4`` is not an :class:`h4pin.H4`, an option is not one of its names (a
+            ``str``), ``terms`` is not a bool or None, ``elements`` is none of the above.
+        PoseError: ``pose`` is not real numbers of shape (4,) or (N, 4) (bools, text, ``None``,
+            complex numbers and masked arrays are refused), or not finite with ``on_error="raise"``.
+        UnreachablePoseError, SingularPoseError: as ``on_error`` says.
     """
-    _check_options(model, on_error, method)
+    # The door (issue 30): the usual call passes on identity tests alone (a few tens of ns);
+    # anything else goes through _check_call, which accepts subclasses and numpy's str and bool.
+    if not (type(h4) is H4 and type(model) is str and model in MODELS and type(on_error) is str
+            and on_error in ON_ERRORS and type(method) is str and method in METHODS
+            and (terms is None or terms is True or terms is False)):
+        model, on_error, method, terms = _check_call(h4, model, on_error, method, terms)
     active = _elements_of(h4, elements)
     if on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype is _F64:
         # One pose: straight to its backend (a pose it refuses goes the long way for its error).
@@ -316,7 +332,8 @@ def _terms_of(h4, x: np.ndarray, model: str, method: str, active: Elements | Non
 
 def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: bool,
                 active: Elements | None) -> Compliance:
-    raw = np.array(pose, dtype=float) if on_error == "nan" and not np.iscomplexobj(pose) else None
+    pose = real_array(pose, "pose")  # no bools, text, None, complex or masked arrays (PoseError)
+    raw = pose.copy() if on_error == "nan" else None
     if raw is not None and raw.ndim in (1, 2) and raw.shape[-1] == 4:
         x = raw
         finite = np.atleast_1d(np.all(np.isfinite(np.atleast_2d(x)), axis=1))
