@@ -89,11 +89,15 @@ class FrameOutput:
             v_x, v_y, v_z of the frame's origin (m), w_x, w_y, w_z (rad), world axes; the dual load
             is a force at the origin (N) and a torque (N.m)).
         rows: which of the 6 rows to keep.
+        kind: a ``pin.FrameType`` when several frames share the name (an MJCF body and site);
+            default: the name alone (the first of the types OP_FRAME, BODY, FIXED_JOINT, JOINT,
+            SENSOR that has it, when several do).
     """
 
     frame: str
     reference: Any = pin.LOCAL_WORLD_ALIGNED
     rows: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
+    kind: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,15 +189,36 @@ def stiffness_vector(model: pin.Model, stiffness: Mapping[str, Any]) -> np.ndarr
     return k
 
 
+_FRAME_TYPES = ("OP_FRAME", "BODY", "FIXED_JOINT", "JOINT", "SENSOR")
+
+
+def frame_id(model: pin.Model, name: str, kind: Any = None) -> int:
+    """The id of frame ``name`` (of type ``kind`` if given; when several frames share the name,
+    the first of the types OP_FRAME, BODY, FIXED_JOINT, JOINT, SENSOR that has it).
+
+    Raises:
+        ParameterError: no such frame.
+    """
+    if kind is not None:
+        if not model.existFrame(name, kind):
+            raise ParameterError(f"outputs: the model has no frame named {name!r} of type {kind}")
+        return int(model.getFrameId(name, kind))
+    if not model.existFrame(name):
+        raise ParameterError(f"outputs: the model has no frame named {name!r}")
+    for t in _FRAME_TYPES:
+        ft = getattr(pin.FrameType, t)
+        if model.existFrame(name, ft):
+            return int(model.getFrameId(name, ft))
+    return int(model.getFrameId(name))
+
+
 def output_jacobian(model: pin.Model, data: pin.Data, outputs: Sequence[Output]) -> np.ndarray:
     """Jo (m, nv): the stacked output rows at the configuration of ``data`` (needs
     ``pin.computeJointJacobians`` first)."""
     rows = []
     for out in outputs:
         if isinstance(out, FrameOutput):
-            if not model.existFrame(out.frame):
-                raise ParameterError(f"outputs: the model has no frame named {out.frame!r}")
-            jac = pin.getFrameJacobian(model, data, model.getFrameId(out.frame), out.reference)
+            jac = pin.getFrameJacobian(model, data, frame_id(model, out.frame, out.kind), out.reference)
             rows.append(jac[list(out.rows)])
         elif isinstance(out, JointOutput):
             sel = np.zeros((model.joints[_joint_id(model, out.joint, "outputs")].nv, model.nv))

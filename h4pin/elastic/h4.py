@@ -126,6 +126,17 @@ class ElasticH4:
         return d
 
     @property
+    def mechanism(self) -> Any:
+        """This elastic model as an :class:`h4pin.elastic.Mechanism` (its tree, closures and the
+        four actuators), with the inertias :func:`h4pin.modes` uses (each forearm on its
+        actuator's spring): ``mechanism.compliance(q, self.stiffness, ["D"], locked=self.locked)``
+        and ``mechanism.modes(...)`` are this model's through the generic calls."""
+        from h4pin.elastic.mechanism import Mechanism
+        from h4pin.elastic.modes import mass_model
+
+        return Mechanism(mass_model(self), self.constraint_models, self.locked, name="elastic H4")
+
+    @property
     def elastic_joints(self) -> tuple[str, ...]:
         """Names of the elastic joints, in insertion order."""
         return tuple(self.stiffness)

@@ -187,7 +187,8 @@ def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked:
             raise UnassembledError(f"closure {cm.name!r} does not hold at q: error {trans:.3e} m, {rot:.3e} rad")
     col, row = engine._scaling(model, d, constraint_models, length)
     jc = pin.getConstraintsJacobian(model, d, constraint_models, cds) * row[:, None] * col[None, :]
-    lock_idx = np.concatenate([engine._velocity_slice(model, model.getJointId(n)) for n in locked])
+    lock_idx = np.concatenate([engine._velocity_slice(model, model.getJointId(n)) for n in locked] or
+                              [np.zeros(0, dtype=int)])
     lock = np.eye(model.nv)[lock_idx]
     a = np.vstack([jc, lock])
     frozen = np.vstack([a, np.eye(model.nv)[np.flatnonzero(k)]])
@@ -198,6 +199,31 @@ def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked:
     _, s, vt = np.linalg.svd(a)
     rank = int(np.sum(s > engine.RANK_TOL * s[0]))
     return col[:, None] * vt[rank:].T
+
+
+def undamped_modes(n: np.ndarray, k: np.ndarray, mass: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Frequencies (Hz, ascending), mass-normalised shapes (m, nv) and the number of massless
+    directions of the undamped modes of springs ``k`` (nv,) and joint-space inertia ``mass``
+    (nv, nv) over the admissible motions ``dq = n z`` (steps 2 to 4 of the module docstring).
+
+    Raises:
+        ParameterError: nothing has mass.
+    """
+    kz = n.T @ (k[:, None] * n)
+    mz = n.T @ mass @ n
+    mu, v = np.linalg.eigh(0.5 * (mz + mz.T))
+    if not mu[-1] > 0:
+        raise ParameterError("nothing has mass: give a payload of mass > 0, or keep link_inertias=True")
+    heavy = mu > MASSLESS_TOL * mu[-1]
+    vm, vs, mum = v[:, heavy], v[:, ~heavy], mu[heavy]
+    kmm, kms, kss = vm.T @ kz @ vm, vm.T @ kz @ vs, vs.T @ kz @ vs
+    follow = -np.linalg.solve(kss, kms.T) if vs.shape[1] else np.zeros((0, len(mum)))
+    kstar = kmm + kms @ follow
+    root = np.sqrt(mum)
+    lam, y = np.linalg.eigh(kstar / root[:, None] / root[None, :])
+    amp = y / root[:, None]
+    shapes_q = (n @ (vm @ amp + vs @ (follow @ amp))).T
+    return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi), shapes_q, int(np.count_nonzero(~heavy))
 
 
 def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_inertias: bool = True,
@@ -240,30 +266,16 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     mass = np.triu(mass) + np.triu(mass, 1).T  # Pinocchio may fill the upper triangle only
     if payload is not None and payload.mass > 0:
         mass = mass + jd.T @ payload.spatial() @ jd
-    kz = n.T @ (k[:, None] * n)
-    mz = n.T @ mass @ n
-    mu, v = np.linalg.eigh(0.5 * (mz + mz.T))
-    if not mu[-1] > 0:
-        raise ParameterError("nothing has mass: give a payload of mass > 0, or keep link_inertias=True")
-    heavy = mu > MASSLESS_TOL * mu[-1]
-    vm, vs, mum = v[:, heavy], v[:, ~heavy], mu[heavy]
-    kmm, kms, kss = vm.T @ kz @ vm, vm.T @ kz @ vs, vs.T @ kz @ vs
-    follow = -np.linalg.solve(kss, kms.T) if vs.shape[1] else np.zeros((0, len(mum)))
-    kstar = kmm + kms @ follow
-    root = np.sqrt(mum)
-    lam, y = np.linalg.eigh(kstar / root[:, None] / root[None, :])
-    amp = y / root[:, None]
-    shapes_q = (n @ (vm @ amp + vs @ (follow @ amp))).T
+    freq, shapes_q, massless = undamped_modes(n, k, mass)
     shapes_tp = shapes_q @ jo.T
     sized = shapes_tp * np.r_[np.ones(3), np.full(5, _SIGN_LENGTH)]
     sign = np.sign(sized[np.arange(len(sized)), np.argmax(np.abs(sized), axis=1)])
     sign[sign == 0] = 1.0
     shapes_q *= sign[:, None]
     shapes_tp *= sign[:, None]
-    freq = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi)
     for a in (freq, shapes_tp, shapes_q, x):
         a.setflags(write=False)
-    return Modes(freq, x, payload, int(np.count_nonzero(~heavy)), (shapes_tp, shapes_q))
+    return Modes(freq, x, payload, massless, (shapes_tp, shapes_q))
 
 
-__all__ = ["MASSLESS_TOL", "Modes", "Payload", "mass_model", "modes"]
+__all__ = ["MASSLESS_TOL", "Modes", "Payload", "mass_model", "modes", "undamped_modes"]

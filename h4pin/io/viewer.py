@@ -34,6 +34,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 import meshcat
@@ -44,6 +45,7 @@ import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 from tqdm import tqdm
 
+from h4pin.errors import ParameterError
 from h4pin.files import write_text
 from h4pin.io import meshcat_server
 from h4pin.kinematics import closed_form as geometry
@@ -362,6 +364,87 @@ class Scene:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class MechanismScene(Scene):
+    """A meshcat scene of any closed-loop robot (:class:`h4pin.elastic.Mechanism`) at a
+    configuration: a stick drawing (each joint a ball, each link a rod from its parent joint,
+    each closure's two points), and the compliance ellipsoid of an output frame. Owns its
+    meshcat server as :class:`Scene` (``close``, ``html``, ``write_html``, ``url``).
+
+    Args:
+        mechanism: the robot; q: an assembled configuration (nq,).
+        springs, locked, output: as :meth:`h4pin.elastic.Mechanism.compliance`, for the
+            ellipsoid of the frame ``output`` (none drawn when ``springs`` or ``output`` is None).
+        scale: mm drawn per um/N (default: the largest radius about 120 mm).
+        vis, host: as :class:`Scene`.
+
+    Raises:
+        as :meth:`h4pin.elastic.Mechanism.compliance` (before any server starts).
+    """
+
+    def __init__(self, mechanism: Any, q: Any, springs: Any = None, output: str | None = None, locked: Any = (), *,
+                 scale: float | None = None, vis: meshcat.Visualizer | None = None,
+                 host: str = meshcat_server.LOCALHOST):
+        from h4pin.elastic.engine import frame_id
+        from h4pin.elastic.mechanism import Mechanism
+
+        if not isinstance(mechanism, Mechanism):
+            raise ParameterError(f"mechanism: an h4pin.elastic.Mechanism, got {type(mechanism).__name__}")
+        q = mechanism._q(q)
+        block = None
+        if springs is not None and output is not None:
+            block = mechanism.compliance(q, springs, [output], locked)[:3, :3]
+        model, d = mechanism.model, mechanism.model.createData()
+        pin.framesForwardKinematics(model, d, q)
+        self.h4 = None
+        self.mechanism = mechanism
+        self._server = None
+        self.legend = [f"{mechanism.name}: {model.njoints - 1} joints, {len(mechanism.constraint_models)} closures"]
+        try:
+            if vis is None:
+                self._server, zmq_url, _ = meshcat_server.start(host)
+                with contextlib.redirect_stdout(io.StringIO()):
+                    vis = meshcat.Visualizer(zmq_url=zmq_url)
+            self.vis = vis
+            vis["/Grid"].set_property("visible", False)
+            points = np.array([d.oMi[j].translation for j in range(model.njoints)])
+            size = max(float(np.ptp(points, axis=0).max()), 1e-3)
+            rod, ball = 0.01 * size, 0.025 * size
+            for j in range(1, model.njoints):
+                a, b = points[model.parents[j]], points[j]
+                vis[f"mechanism/joints/{model.names[j]}"].set_object(
+                    mg.Sphere(ball), mg.MeshLambertMaterial(color=0xd0a020 if model.names[j] in mechanism.actuated
+                                                            else 0x606060))
+                vis[f"mechanism/joints/{model.names[j]}"].set_transform(mt.translation_matrix(b))
+                if np.linalg.norm(b - a) > 1e-9:
+                    rot = _rotation_y_to(b - a)
+                    vis[f"mechanism/links/{model.names[j]}"].set_object(
+                        mg.Cylinder(float(np.linalg.norm(b - a)), rod), mg.MeshLambertMaterial(color=0x3060c0))
+                    vis[f"mechanism/links/{model.names[j]}"].set_transform(_transform(rot, 0.5 * (a + b)))
+            for cm in mechanism.constraint_models:
+                for side, (jid, place) in enumerate(((cm.joint1_id, cm.joint1_placement),
+                                                     (cm.joint2_id, cm.joint2_placement))):
+                    at = (d.oMi[jid] * place).translation
+                    vis[f"mechanism/closures/{cm.name}/{side + 1}"].set_object(
+                        mg.Sphere(0.6 * ball), mg.MeshLambertMaterial(color=0xd02020))
+                    vis[f"mechanism/closures/{cm.name}/{side + 1}"].set_transform(mt.translation_matrix(at))
+            if block is not None:
+                centre = d.oMf[frame_id(model, output)].translation
+                used = draw_ellipsoid(vis, "mechanism/ellipsoid", block, centre, scale)
+                radii, _ = ellipsoid_axes(block)
+                self.legend.append(f"compliance ellipsoid at {output}: {used:g} mm per um/N, largest "
+                                   f"{radii.max() * 1e6:.3g} um/N")
+        except BaseException:
+            self.close()
+            raise
+
+
+def show_mechanism(mechanism: Any, q: Any, springs: Any = None, output: str | None = None, locked: Any = (), *,
+                   scale: float | None = None, host: str = meshcat_server.LOCALHOST) -> MechanismScene:
+    """:class:`MechanismScene` of any closed-loop robot, in a new meshcat server (``html()`` or
+    ``write_html(path)`` for a self-contained page; ``close()`` stops the server)."""
+    return MechanismScene(mechanism, q, springs, output, locked, scale=scale, host=host)
 
 
 def workspace_grid(h4: H4, n: int = 5, span: float = 0.2, heights: tuple[float, ...] = (-0.05, 0.05)) -> np.ndarray:

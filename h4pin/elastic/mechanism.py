@@ -1,0 +1,379 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Any closed-loop robot as a value: :class:`Mechanism` (stiffness, natural frequencies, assembly).
+
+A mechanism is a Pinocchio tree (``pin.Model``), its loop closures
+(``pin.RigidConstraintModel``, ``CONTACT_3D`` or ``CONTACT_6D``) and its actuated joints. It reads
+the formats closed-loop robots are published in:
+
+* :meth:`Mechanism.from_urdf`: a URDF and the YAML sidecar of Gepetto's closed-loop toolbox
+  (``closed_loop``: pairs of frame names, ``type``: ``3D``/``6D`` per pair, ``name_mot``: the motor
+  joints), as that toolbox's loader builds them (fixed base, each pair a closure between the two
+  frames' parent joints at the frames' placements);
+* :meth:`Mechanism.from_mjcf`: an MJCF file whose loops are ``connect``/``weld`` equalities
+  (Pinocchio 4's reader), its ``<actuator>`` joints as the motors;
+* ``Mechanism(model, constraint_models, actuated=...)`` for a model built in code.
+
+Then :meth:`~Mechanism.assemble` closes the loops, :meth:`~Mechanism.compliance` gives the
+compliance of output frames under joint springs (the engine of :mod:`h4pin.elastic.engine`), and
+:meth:`~Mechanism.modes` the natural frequencies with the model's inertias
+(:mod:`h4pin.elastic.modes`' solver). The H4 is one such mechanism with many virtual springs
+(:func:`h4pin.elastic.elastic_model`); ``docs/mechanisms.md`` walks through a five-bar linkage.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin._compat import constraint_calc
+from h4pin.elastic import engine
+from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
+from h4pin.elastic.modes import MASSLESS_TOL, _admissible, undamped_modes
+from h4pin.errors import MalformedURDFError, ParameterError
+
+#: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
+ASSEMBLY_TOL = 1e-10
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MechanismModes:
+    """Undamped modes of a mechanism at a configuration (:meth:`Mechanism.modes`).
+
+    Attributes:
+        frequencies: (m,) Hz, ascending (the massive directions; massless ones condensed).
+        shapes_q: (m, nv) mass-normalised joint motions. massless: directions condensed.
+    """
+
+    frequencies: np.ndarray
+    shapes_q: np.ndarray
+    massless: int
+
+
+def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
+    """Joint names from names or Pinocchio ids, each checked (a typed error naming it)."""
+    out = []
+    for j in joints:
+        if isinstance(j, (int, np.integer)) and not isinstance(j, bool):
+            if not 0 < int(j) < model.njoints:
+                raise ParameterError(f"{what}: joint id {int(j)} is not a joint of the model (1..{model.njoints - 1})")
+            out.append(model.names[int(j)])
+        elif isinstance(j, str):
+            if not model.existJointName(j):
+                known = ", ".join(list(model.names)[1:])
+                raise ParameterError(f"{what}: no joint {j!r} in the model (joints: {known})")
+            out.append(j)
+        else:
+            raise ParameterError(f"{what}: a joint is a name or a Pinocchio joint id, got {j!r}")
+    return tuple(out)
+
+
+def _closures(model: pin.Model, constraint_models: Iterable[Any]) -> Any:
+    """The closures as a ``StdVec_RigidConstraintModel``, each named (``closure_<i>`` when unnamed)."""
+    out = pin.StdVec_RigidConstraintModel()
+    seen = set()
+    for i, cm in enumerate(constraint_models):
+        if not isinstance(cm, pin.RigidConstraintModel):
+            raise ParameterError(f"constraint_models[{i}]: a pin.RigidConstraintModel, got {type(cm).__name__}")
+        if cm.type not in (pin.ContactType.CONTACT_3D, pin.ContactType.CONTACT_6D):
+            raise ParameterError(f"closure {cm.name or i!r}: type {cm.type} (CONTACT_3D or CONTACT_6D only)")
+        for side in (cm.joint1_id, cm.joint2_id):
+            if not 0 <= side < model.njoints:
+                raise ParameterError(f"closure {cm.name or i!r}: joint id {side} is not in the model")
+        copy = pin.RigidConstraintModel(cm)
+        copy.name = cm.name or f"closure_{i + 1}"
+        if copy.name in seen:
+            raise ParameterError(f"two closures are named {copy.name!r}")
+        seen.add(copy.name)
+        out.append(copy)
+    return out
+
+
+class Mechanism:
+    """A closed-loop robot: a Pinocchio tree, its loop closures and its actuated joints (module
+    docstring). Immutable; the model and closures are copies of what was given, a ``pin.Data``
+    is made per calling thread.
+
+    Args:
+        model: the tree (``pin.Model``).
+        constraint_models: the closures (``pin.RigidConstraintModel``; unnamed ones are named
+            ``closure_<i>``, 1-based).
+        actuated: the motor joints, names or Pinocchio joint ids.
+        name: for messages (default the model's name).
+
+    Raises:
+        ParameterError: not a ``pin.Model``, a closure of another kind, an unknown joint.
+    """
+
+    def __init__(self, model: pin.Model, constraint_models: Iterable[Any] = (), actuated: Iterable[Any] = (), *,
+                 name: str | None = None):
+        if not isinstance(model, pin.Model):
+            raise ParameterError(f"model: a pinocchio.Model, got {type(model).__name__}")
+        model = pin.Model(model)
+        object.__setattr__(self, "model", model)
+        object.__setattr__(self, "constraint_models", _closures(model, constraint_models))
+        object.__setattr__(self, "actuated", _names(model, actuated, "actuated"))
+        object.__setattr__(self, "name", name or model.name or "mechanism")
+        object.__setattr__(self, "_local", threading.local())
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"a Mechanism is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        return (f"Mechanism({self.name!r}, nq={self.model.nq}, nv={self.model.nv}, closures="
+                f"{len(self.constraint_models)}, actuated={list(self.actuated)})")
+
+    @property
+    def data(self) -> pin.Data:
+        """The calling thread's own ``pin.Data`` of :attr:`model`."""
+        d = getattr(self._local, "data", None)
+        if d is None:
+            d = self._local.data = self.model.createData()
+        return d
+
+    # ------------------------------------------------------------------ readers
+    @classmethod
+    def from_urdf(cls, urdf_path: str | Path, sidecar: str | Path | None = None, *,
+                  actuated: Iterable[Any] | None = None) -> Mechanism:
+        """A URDF and its closed-loop sidecar (YAML: ``closed_loop``, ``type``, ``name_mot``;
+        default: the URDF's path with ``.yaml``; ``actuated`` overrides ``name_mot``).
+
+        Raises:
+            MissingExtraError: PyYAML is not installed. MalformedURDFError: the URDF does not
+            parse, the sidecar is not such a mapping or names a frame or joint the model lacks.
+        """
+        from h4pin.extras import require
+
+        require("yaml", extra="interop", what="Mechanism.from_urdf")
+        import yaml
+
+        urdf_path = Path(urdf_path)
+        side = urdf_path.with_suffix(".yaml") if sidecar is None else Path(sidecar)
+        try:
+            model = pin.buildModelFromUrdf(str(urdf_path))
+        except (RuntimeError, ValueError, OSError) as exc:
+            raise MalformedURDFError(f"{urdf_path}: Pinocchio cannot read it ({exc})") from None
+        try:
+            content = yaml.safe_load(side.read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise MalformedURDFError(f"{side}: cannot read the sidecar ({exc})") from None
+        if not isinstance(content, dict) or not {"closed_loop", "type"} <= set(content):
+            raise MalformedURDFError(f"{side}: a closed-loop sidecar is a mapping with closed_loop and type")
+        pairs, kinds = list(content["closed_loop"]), list(content["type"])
+        if len(pairs) != len(kinds):
+            raise MalformedURDFError(f"{side}: {len(pairs)} closed_loop pairs but {len(kinds)} types")
+        cms = []
+        for pair, kind in zip(pairs, kinds, strict=True):
+            if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+                raise MalformedURDFError(f"{side}: a closed_loop entry is a pair of frame names, got {pair!r}")
+            missing = [n for n in pair if not model.existFrame(str(n))]
+            if missing:
+                raise MalformedURDFError(f"{side}: no frame {', '.join(map(repr, missing))} in {urdf_path.name}")
+            if str(kind).upper() not in ("3D", "6D"):
+                raise MalformedURDFError(f"{side}: closure type {kind!r} (3D or 6D)")
+            f1, f2 = (model.frames[model.getFrameId(str(n))] for n in pair)
+            ctype = pin.ContactType.CONTACT_3D if str(kind).upper() == "3D" else pin.ContactType.CONTACT_6D
+            cm = pin.RigidConstraintModel(ctype, model, f1.parentJoint, f1.placement, f2.parentJoint, f2.placement,
+                                          pin.ReferenceFrame.LOCAL)
+            cm.name = f"{pair[0]}C{pair[1]}"
+            cms.append(cm)
+        motors = content.get("name_mot", []) if actuated is None else actuated
+        try:
+            names = _names(model, motors, f"{side}: name_mot")
+        except ParameterError as exc:
+            raise MalformedURDFError(str(exc)) from None
+        return cls(model, cms, names, name=model.name or urdf_path.stem)
+
+    @classmethod
+    def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
+        """An MJCF file: its tree, its ``connect``/``weld`` equalities as closures (Pinocchio 4's
+        reader), the joints of its ``<actuator>`` elements as the motors (or ``actuated``).
+
+        Raises:
+            MissingExtraError: Pinocchio < 4 (its MJCF reader gives no closures).
+            MalformedURDFError: Pinocchio cannot read the file.
+        """
+        from h4pin.extras import MissingExtraError
+
+        reader = getattr(pin, "buildModelAndLegacyConstraintsFromMJCF", None)
+        if reader is None:
+            raise MissingExtraError(f"Mechanism.from_mjcf needs Pinocchio >= 4 (its MJCF reader's closures); "
+                                    f"this is {pin.__version__}")
+        path = Path(path)
+        try:
+            model, cms = reader(str(path))
+        except (RuntimeError, ValueError, OSError) as exc:
+            raise MalformedURDFError(f"{path}: Pinocchio cannot read it ({exc})") from None
+        if actuated is None:
+            try:
+                root = ET.parse(path).getroot()
+            except (ET.ParseError, OSError) as exc:
+                raise MalformedURDFError(f"{path}: {exc}") from None
+            actuated = [a.get("joint") for block in root.iter("actuator") for a in block if a.get("joint")]
+            actuated = [j for j in dict.fromkeys(actuated) if model.existJointName(j)]
+        return cls(model, list(cms), actuated, name=model.name or path.stem)
+
+    # ------------------------------------------------------------------ geometry
+    def _q(self, q: Any, what: str = "q") -> np.ndarray:
+        try:
+            arr = np.array(q, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{what}: {self.model.nq} numbers, got {q!r}") from None
+        if arr.shape != (self.model.nq,) or not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{what}: a finite configuration of shape ({self.model.nq},), got shape {arr.shape}")
+        return arr
+
+    def closure_errors(self, q: Any) -> dict[str, tuple[float, float]]:
+        """``{closure: (translation error m, rotation error rad)}`` at q (rotation 0 for 3-D)."""
+        q = self._q(q)
+        d = self.data
+        pin.forwardKinematics(self.model, d, q)
+        out = {}
+        for cm in self.constraint_models:
+            cd = cm.createData()
+            constraint_calc(cm, self.model, d, cd)
+            out[cm.name] = engine.closure_residual(cm, cd)
+        return out
+
+    def assemble(self, q: Any = None, *, fixed: Iterable[Any] | None = None, tol: float = ASSEMBLY_TOL,
+                 iterations: int = 100) -> np.ndarray:
+        """A configuration with every closure closed (within ``tol`` m, and rad for 6-D
+        closures), by Gauss-Newton from ``q`` (default the neutral configuration) with the
+        joints ``fixed`` (default the actuated ones) held.
+
+        Raises:
+            UnassembledError: it does not close (names the worst closure and its error).
+            ParameterError: a bad q or joint.
+        """
+        model, d = self.model, self.data
+        q = pin.neutral(model) if q is None else self._q(q)
+        held = _names(model, self.actuated if fixed is None else fixed, "fixed")
+        free = np.ones(model.nv, dtype=bool)
+        for n in held:
+            j = model.joints[model.getJointId(n)]
+            free[j.idx_v:j.idx_v + j.nv] = False
+        worst = (math.inf, "")
+        for _ in range(iterations):
+            pin.computeJointJacobians(model, d, q)
+            rows, res, worst = [], [], (0.0, "")
+            for cm in self.constraint_models:
+                r, jac, err = _closure_step(model, d, cm)
+                rows.append(jac)
+                res.append(r)
+                worst = max(worst, (err, cm.name))
+            if worst[0] <= tol:
+                return q
+            jac = np.vstack(rows)[:, free]
+            step = np.zeros(model.nv)
+            step[free] = -np.linalg.lstsq(jac, np.concatenate(res), rcond=None)[0]
+            q = pin.integrate(model, q, step)
+        raise UnassembledError(f"{self.name}: the loops do not close from this start: closure {worst[1]!r} is off by "
+                               f"{worst[0]:.3e} (tolerance {tol:g}) after {iterations} steps; start nearer, or "
+                               "hold other joints (fixed=...)")
+
+    # ------------------------------------------------------------------ stiffness
+    def _outputs(self, outputs: Sequence[Any]) -> list[Any]:
+        if isinstance(outputs, (str, FrameOutput, JointOutput)):
+            outputs = [outputs]
+        out = []
+        for o in outputs:
+            if isinstance(o, str):
+                if not self.model.existFrame(o):
+                    raise ParameterError(f"outputs: no frame {o!r} in {self.name}")
+                out.append(FrameOutput(o))
+            elif isinstance(o, FrameOutput):
+                if not self.model.existFrame(o.frame):
+                    raise ParameterError(f"outputs: no frame {o.frame!r} in {self.name}")
+                out.append(o)
+            elif isinstance(o, JointOutput):
+                _names(self.model, [o.joint], "outputs")
+                out.append(o)
+            else:
+                raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
+        if not out:
+            raise ParameterError("outputs: give at least one frame")
+        return out
+
+    def _springs(self, springs: Mapping[Any, Any]) -> dict[str, Any]:
+        if not isinstance(springs, Mapping) or not springs:
+            raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
+        names = _names(self.model, list(springs), "springs")
+        return dict(zip(names, springs.values(), strict=True))
+
+    def compliance(self, q: Any, springs: Mapping[Any, Any], outputs: Sequence[Any],
+                   locked: Iterable[Any] = ()) -> np.ndarray:
+        """The (6 n, 6 n) compliance of n output frames at an assembled q: force at each frame's
+        origin and torque, world axes (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint:
+        stiffness}`` (N.m/rad, N/m), joints without a spring free, ``locked`` held
+        (:func:`h4pin.elastic.engine.compliance`).
+
+        Raises:
+            ParameterError: an unknown joint or frame, a bad stiffness or q.
+            UnassembledError: a closure does not hold at q (its name and error).
+            UnrestrainedMotionError: a motion strains no spring (the joints it moves).
+        """
+        return engine.compliance(self.model, self.constraint_models, self._q(q),
+                                 locked=_names(self.model, locked, "locked"), stiffness=self._springs(springs),
+                                 outputs=self._outputs(outputs), data=self.data)
+
+    def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
+              payload: tuple[str, Any] | None = None) -> MechanismModes:
+        """Undamped natural modes at an assembled q with the model's inertias, the springs and
+        the locked joints of :meth:`compliance`, and an optional ``payload``: ``(frame,
+        h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in the frame's axes).
+        Massless directions are condensed statically (:func:`h4pin.elastic.modes.undamped_modes`).
+
+        Raises:
+            as :meth:`compliance`; ParameterError: nothing has mass.
+        """
+        from h4pin.elastic.modes import Payload
+
+        q = self._q(q)
+        stiff = self._springs(springs)
+        lock = _names(self.model, locked, "locked")
+        model, d = self.model, self.data
+        k = engine.stiffness_vector(model, stiff)
+        pin.computeJointJacobians(model, d, q)
+        n = _admissible(model, self.constraint_models, q, lock, k, d)
+        extra = None
+        if payload is not None:
+            frame, body = payload
+            if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
+                raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}")
+            jf = pin.getFrameJacobian(model, d, model.getFrameId(frame), pin.LOCAL)
+            extra = jf.T @ body.spatial() @ jf
+        mass = pin.crba(model, d, q)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        if extra is not None:
+            mass = mass + extra
+        freq, shapes, massless = undamped_modes(n, k, mass)
+        return MechanismModes(freq, shapes, massless)
+
+
+def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np.ndarray, float]:
+    """A closure's residual, its Jacobian (rows, nv) and its error: world position gap for a
+    3-D closure; ``log6`` of the relative placement (frame 1's axes) for a 6-D one."""
+    o1 = d.oMi[cm.joint1_id] * cm.joint1_placement
+    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+    lwa = pin.LOCAL_WORLD_ALIGNED
+    if cm.type == pin.ContactType.CONTACT_3D:
+        j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, lwa)[:3]
+        j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, lwa)[:3]
+        r = o2.translation - o1.translation
+        return r, j2 - j1, float(np.linalg.norm(r))
+    rel = o1.inverse() * o2
+    j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL)
+    j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL)
+    r = pin.log6(rel).vector
+    jac = pin.Jlog6(rel) @ (j2 - rel.inverse().toActionMatrix() @ j1)
+    return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))
+
+
+__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "Mechanism", "MechanismModes"]
