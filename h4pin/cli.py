@@ -1,11 +1,23 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Command line: ``h4pin table2`` (the paper's Table II), ``h4pin view`` (meshcat viewer) and
-``h4pin export --mjcf PATH`` (MuJoCo model).
+"""Command line: ``h4pin table2`` (the paper's Table II), ``h4pin view`` (meshcat viewer),
+``h4pin export --out PATH`` (MuJoCo model), the studies; ``docs/cli.md`` lists every command and
+option (:func:`reference` writes it).
+
+One convention: ``--model`` is ``paper`` unless told (as :func:`h4pin.compliance`; ``cycle``:
+:data:`CYCLE_MODEL`); enumerations
+(``--model``, ``--variant``) are choices; ``--out PATH`` is a command's main output (a file, or a
+store for a sweep), ``--figure PATH`` its picture (PNG) and ``--figures DIR`` a folder of them;
+``--quiet`` hides progress bars; ``--payload KG`` is a point mass at D in kg (>= 0). Options
+renamed to fit (``--html``, ``--mjcf``, ``--map``, ``--pareto``) are still taken for one release,
+hidden, with a one-line warning on stderr (:data:`RENAMED`).
+
+Outputs: an existing file is replaced only if h4pin wrote it (:func:`h4pin.files.written_by_h4pin`)
+or with ``--overwrite``; otherwise the command exits 2 before any work and the file is untouched.
 
 Errors a user can act on (unreachable or singular pose, bad parameter, malformed URDF, bad
 arguments) print one line on stderr and exit with status 2; nothing is half-written.
 
-``h4pin view`` without ``--html`` serves the scene until it is stopped. Whatever stops it, its
+``h4pin view`` without ``--out`` serves the scene until it is stopped. Whatever stops it, its
 meshcat server stops too, and the exit status says why, as shells do for a signal (128 + its
 number): Ctrl-C (SIGINT) exits 130, SIGTERM 143, SIGHUP (terminal closed) 129. A signal the
 command was started with ignored (``nohup``, a shell's background job) stays ignored.
@@ -13,14 +25,23 @@ command was started with ignored (``nohup``, a shell's background job) stays ign
 
 from __future__ import annotations
 
+import inspect
 import math
 import signal
 import sys
 from pathlib import Path
+from typing import Any, Literal
 
 import typer
+import typer.main
 
+from h4pin.description.params import VARIANTS
 from h4pin.errors import H4Error
+from h4pin.stiffness.eq30 import MODELS
+
+#: ``--variant`` and ``--model`` as choices (typer takes a ``Literal`` as a click choice).
+Variant = Literal[VARIANTS]  # type: ignore[valid-type]
+Model = Literal[MODELS]  # type: ignore[valid-type]
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, rich_markup_mode=None,
                   help="The H4 parallel robot on Pinocchio and its stiffness (Company et al., ICRA 2005).")
@@ -29,6 +50,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 @app.callback()
 def _root() -> None:
     """The H4 parallel robot on Pinocchio and its stiffness (Company et al., ICRA 2005)."""
+    _warnings.clear()
 
 
 class Stopped(BaseException):
@@ -94,11 +116,60 @@ def load_robot(variant: str | None, urdf: Path | None):
     return load(urdf if urdf else (variant or "prototype"))
 
 
+# What the options every command shares say (typer.Option is called in each signature).
+VARIANT = "shipped variant (default: prototype)"
+URDF = "path to an H4 URDF instead of a variant"
+MODEL = ("'paper' (eq. 30 as printed, the default of h4pin.compliance) or 'consistent' (erratum 4 fixed: "
+         "symmetric K)")
+QUIET = "no progress bar"
+OVERWRITE = "replace an existing output that h4pin did not write (without it only h4pin's own files are replaced)"
+PAYLOAD = "point payload at D, kg (0: none)"
+#: The one exception to ``--model paper``: the cycle's dynamic part (h4pin.studies.cycle.dynamic_deflection)
+#: divides by the first natural frequency of the symmetric part of K^-1, which the paper's
+#: unsymmetric K leaves indefinite (ZeroDivisionError), so ``h4pin cycle`` keeps its model until
+#: the study takes the paper model.
+CYCLE_MODEL = "consistent"
+
+
+def check_payload(values: float | list[float]) -> None:
+    """Refuse a ``--payload`` that is not a finite mass >= 0."""
+    for p in values if isinstance(values, list) else [values]:
+        if not (math.isfinite(p) and p >= 0):
+            fail(f"--payload must be a finite mass >= 0 in kg, got {p:g}")
+
+
+#: Options renamed to the convention: old name -> new name. The old names are hidden options that
+#: still work for one release, with a one-line warning.
+RENAMED = {"--html": "--out", "--mjcf": "--out", "--map": "--figure", "--pareto": "--figure"}
+
+
+_warnings: list[str] = []
+
+
+def renamed(new: Any, old: Any, old_name: str) -> tuple[Any, str]:
+    """The value of an option given under its new name or its old one (:data:`RENAMED`), and the
+    name the user typed (for messages). The old name's warning waits for :func:`warn_renamed`, so
+    that an error stays one line."""
+    new_name = RENAMED[old_name]
+    if old is None:
+        return new, new_name
+    if new is not None:
+        fail(f"give {new_name}, not both {new_name} and {old_name} (its old name)")
+    _warnings.append(f"h4pin: {old_name} is deprecated, use {new_name} ({old_name} goes in the next release)")
+    return old, old_name
+
+
+def warn_renamed() -> None:
+    """Print the warnings of old option names (once the arguments passed their checks)."""
+    while _warnings:
+        typer.echo(_warnings.pop(0), err=True)
+
+
 @app.command()
 def table2(
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
-    model: str = typer.Option("paper", help="'paper' (eq. 30 as printed) or 'consistent' (erratum 4 fixed)"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
+    model: Model = typer.Option("paper", help=MODEL),
     match: bool = typer.Option(False, "--measured-match", help="side by side: this robot, the 'measured_match' "
                                "variant (a saturated fit of the measured table) at its point, the paper's tables"),
 ) -> None:
@@ -110,27 +181,32 @@ def table2(
 
 @app.command()
 def view(
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
     pose: tuple[float, float, float, float] | None = typer.Option(
         None, metavar="X Y Z THETA", help="pose of D in m and rad (default: all actuators at 45 deg)"),
     load: tuple[float, float, float] | None = typer.Option(
         None, metavar="FX FY FZ", help="force at D in N: draws the deflected robot and the load"),
     field: bool = typer.Option(False, "--field", help="also draw an ellipsoid field over the workspace"),
     rotational: bool = typer.Option(False, "--rotational", help="also draw the rotational ellipsoid"),
-    html: Path | None = typer.Option(None, help="write a self-contained page here and exit (no server)"),
+    out: Path | None = typer.Option(None, metavar="PATH",
+                                    help="write a self-contained HTML page here and exit (no server)"),
     scale: float | None = typer.Option(None, help="ellipsoid scale, mm per um/N (default: automatic)"),
     exaggeration: float | None = typer.Option(None, help="factor on the drawn deflection (default: automatic)"),
-    model: str = typer.Option("consistent", help="'consistent' (symmetric K) or 'paper'"),
+    model: Model = typer.Option("paper", help=MODEL),
     host: str = typer.Option("127.0.0.1", help="interface the server listens on; 0.0.0.0 lets other machines in"),
     mode: int | None = typer.Option(None, help="also animate this natural mode of the elastic robot (1: the first)"),
-    payload: float | None = typer.Option(None, help="with --mode: a point payload at D, in kg"),
+    payload: float = typer.Option(0.0, metavar="KG", help=f"with --mode: {PAYLOAD}"),
+    quiet: bool = typer.Option(False, "--quiet", help=f"{QUIET} (of --field)"),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
+    html: Path | None = typer.Option(None, "--html", hidden=True, help="old name of --out"),
 ) -> None:
     """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser).
 
     Ctrl-C, SIGTERM and SIGHUP stop the server (exit 130, 143, 129)."""
     import time
 
+    out, out_name = renamed(out, html, "--html")
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup's choice stands
             signal.signal(sig, _stop_on_signal)
@@ -142,32 +218,40 @@ def view(
         fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
     if mode is not None and mode < 1:
         fail(f"--mode must be >= 1 (1: the first natural mode), got {mode}")
-    if payload is not None and not (math.isfinite(payload) and payload >= 0):
-        fail(f"--payload must be a finite mass >= 0 in kg, got {payload:g}")
-    if payload is not None and mode is None:
+    check_payload(payload)
+    if payload > 0 and mode is None:
         fail("--payload goes with --mode (the payload of the animated mode)")
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.io import meshcat_server, viewer
 
-    if html is not None:
-        if html.is_dir():
-            fail(f"--html {html} is a folder: give the path of the page to write, e.g. {html / 'h4.html'}")
-        check_output(html, "--html")
+    if out is not None:
+        if out.is_dir():
+            fail(f"{out_name} {out} is a folder: give the path of the page to write, e.g. {out / 'h4.html'}")
+        check_output(out, out_name)
+        check_replace(out, out_name, overwrite)
     else:
         meshcat_server.check_host(host)
 
-    from h4pin.elastic import Payload
+    import numpy as np
 
+    from h4pin.elastic import Payload
+    from h4pin.kinematics.closed_form import centre_pose
+
+    warn_renamed()
     h4 = load_robot(variant, urdf)
+    # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
     scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
-                        scale=scale, exaggeration=exaggeration, field=field, rotational=rotational, model=model,
-                        host=host, mode=None if mode is None else mode - 1,
-                        payload=None if payload is None else Payload(payload))
+                        scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
     try:
+        if field:
+            scene.field(viewer.workspace_grid(h4), model, progress=not quiet)
+        if mode is not None:
+            x = centre_pose(h4) if pose is None else np.array(pose, dtype=float)
+            scene.mode(x, mode - 1, Payload(payload) if payload > 0 else None)
         for line in scene.legend:
             typer.echo(line)
-        if html is not None:
-            typer.echo(f"wrote {scene.write_html(html)}")
+        if out is not None:
+            typer.echo(f"wrote {scene.write_html(out)}")
             return
         typer.echo(f"meshcat: {scene.url}  (Ctrl-C to stop the server)")
         while True:
@@ -186,19 +270,21 @@ def view(
 
 @app.command()
 def tolerance(
-    variant: str | None = typer.Option(None, help="nominal robot: shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="nominal robot: path to an H4 URDF instead of a variant"),
+    variant: Variant | None = typer.Option(None, help=f"nominal robot: {VARIANT}"),
+    urdf: Path | None = typer.Option(None, help=f"nominal robot: {URDF}"),
     robots: int = typer.Option(1000, help="robots drawn"),
     seed: int = typer.Option(0, help="seed of the draws"),
     sigma: list[str] = typer.Option([], metavar="NAME=METRES",
                                     help="sigma of one tolerance in m (forearm, A0, b, P, C0, l, mismatch)"),
     sensitivity: bool = typer.Option(True, help="also run one tolerance at a time"),
-    figure: Path | None = typer.Option(None, help="write the histograms to this PNG"),
-    model: str = typer.Option("paper", help="'paper' or 'consistent'"),
+    figure: Path | None = typer.Option(None, "--figure", metavar="PATH", help="write the histograms to this PNG"),
+    model: Model = typer.Option("paper", help=MODEL),
+    quiet: bool = typer.Option(False, "--quiet", help=QUIET),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
 ) -> None:
     """Tolerance study: compliance and static pose error of robots with manufacturing errors."""
     from h4pin.errors import ParameterError
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.studies import tolerance as tol
 
     sigmas: dict[str, float] = {}
@@ -210,10 +296,11 @@ def tolerance(
     sigmas = tol.check_sigmas(sigmas)
     if figure is not None:
         check_output(figure, "--figure", suffixes=(".png",))
+        check_replace(figure, "--figure", overwrite)
     if robots < 1:
         fail(f"--robots must be >= 1, got {robots}")
     h4 = load_robot(variant, urdf)
-    res = tol.study(h4, n_robots=robots, sigmas=sigmas, seed=seed, model=model, progress=True)
+    res = tol.study(h4, n_robots=robots, sigmas=sigmas, seed=seed, model=model, progress=not quiet)
     sens = tol.sensitivity(h4, n_robots=min(robots, 1000), sigmas=sigmas, seed=seed, model=model) if sensitivity \
         else None
     typer.echo(tol.report(res, sens))
@@ -223,45 +310,56 @@ def tolerance(
 
 @app.command()
 def export(
-    mjcf: Path = typer.Option(..., help="write the robot as MuJoCo MJCF here (closures as connect equalities)"),
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    out: Path | None = typer.Option(None, metavar="PATH", help="write the robot as MuJoCo MJCF here (closures as "
+                                    "connect equalities); required"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
     elastic: bool = typer.Option(False, "--elastic", help="the elastic robot: every compliance a spring joint, "
                                  "actuators locked at the centre pose (h4pin.elastic_model)"),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
+    mjcf: Path | None = typer.Option(None, "--mjcf", hidden=True, help="old name of --out"),
 ) -> None:
-    """Export the robot for another tool: --mjcf PATH writes a MuJoCo model (8 closures, 4 motors;
+    """Export the robot for another tool: --out PATH writes a MuJoCo model (8 closures, 4 motors;
     with --elastic, the compliances as spring joints and the actuators locked)."""
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.io.mjcf import write_mjcf
 
-    check_output(mjcf, "--mjcf")
+    out, out_name = renamed(out, mjcf, "--mjcf")
+    if out is None:
+        fail("Missing option '--out'.")
+    check_output(out, out_name)
+    check_replace(out, out_name, overwrite)
+    warn_renamed()
     h4 = load_robot(variant, urdf)
     try:
-        typer.echo(f"wrote {write_mjcf(h4, mjcf, elastic=elastic)}")
+        typer.echo(f"wrote {write_mjcf(h4, out, elastic=elastic)}")
     except OSError as exc:
-        fail(f"cannot write {mjcf}: {exc.strerror or exc}")
+        fail(f"cannot write {out}: {exc.strerror or exc}")
 
 
 @app.command()
 def atlas(
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
     x: tuple[float, float, int] = typer.Option((-0.3, 0.3, 61), metavar="LO HI N", help="x grid, m"),
     y: tuple[float, float, int] = typer.Option((-0.3, 0.3, 61), metavar="LO HI N", help="y grid, m"),
-    z: list[float] | None = typer.Option(None, help="z of a slice, m; repeat for several (default: centre z)"),
+    z: list[float] | None = typer.Option(None, metavar="Z",
+                                         help="z of a slice, m; repeat for several (default: centre z)"),
     z_range: tuple[float, float, int] | None = typer.Option(None, metavar="LO HI N", help="3-D box: z grid, m"),
-    theta: list[float] | None = typer.Option(None, help="theta of a slice, rad; repeat for several (default 0)"),
-    model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
-    out: Path = typer.Option(Path("atlas.nc"), help="output file: .nc (NetCDF) or .zarr"),
-    figures: Path | None = typer.Option(None, help="folder for the maps atlas_<quantity>.png"),
+    theta: list[float] | None = typer.Option(None, metavar="THETA",
+                                             help="theta of a slice, rad; repeat for several (default 0)"),
+    model: Model = typer.Option("paper", help=f"{MODEL}; both give the same K_tt"),
+    out: Path = typer.Option(Path("atlas.nc"), metavar="PATH", help="output file: .nc (NetCDF) or .zarr"),
+    figures: Path | None = typer.Option(None, metavar="DIR", help="folder for the maps atlas_<quantity>.png"),
     frequency: bool = typer.Option(False, "--frequency", help="also the first natural frequency (Hz)"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    quiet: bool = typer.Option(False, "--quiet", help=QUIET),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
 ) -> None:
     """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability
     (and the first natural frequency)."""
     import numpy as np
 
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.kinematics.closed_form import centre_pose
     from h4pin.studies import atlas as atlas_module
 
@@ -271,8 +369,12 @@ def atlas(
         if axis is not None and axis[2] < 1:
             fail(f"{name} LO HI N needs N >= 1, got {axis[2]}")
     atlas_module.check_out(out, "--out")
+    check_replace(out, "--out", overwrite)  # a .zarr store: check_out's rule (only an atlas is replaced)
     if figures is not None:
         check_output(figures / "atlas_status.png", "--figures")
+        maps = (*atlas_module.QUANTITIES, *(atlas_module.FREQUENCY if frequency else ()), "status")
+        for q in maps:
+            check_replace(figures / f"atlas_{q}.png", "--figures", overwrite)
     n_z = z_range[2] if z_range else max(len(z or []), 1)
     if out.suffix != ".zarr":  # a .zarr atlas streams to disk: its memory does not grow with the grid
         atlas_module.check_memory(x[2] * y[2] * n_z * max(len(theta or []), 1))
@@ -298,35 +400,43 @@ def atlas(
 
 @app.command()
 def sweep(
-    out: Path = typer.Option(Path("sweep.zarr"), help="zarr store of the results (resumed if it exists)"),
+    out: Path = typer.Option(Path("sweep.zarr"), metavar="PATH", help="zarr store of the results (resumed if it "
+                             "exists)"),
     designs: int = typer.Option(1000, help="number of designs (Sobol sequence over the design space)"),
     seed: int = typer.Option(0, help="seed of the Sobol sequence"),
     chunk: int = typer.Option(64, help="designs per task (and per zarr chunk)"),
-    model: str = typer.Option("consistent", help="'consistent' or 'paper' (same K_tt)"),
+    model: Model = typer.Option("paper", help=f"{MODEL}; both give the same K_tt"),
     workers: int | None = typer.Option(None, help="run on a Dask LocalCluster with this many workers"),
     scheduler: str | None = typer.Option(None, help="run on the Dask scheduler at this address"),
     threads: int | None = typer.Option(None, help="numba threads per task (default: all locally, 1 on Dask)"),
-    pareto: Path | None = typer.Option(None, help="write the Pareto figure here (PNG)"),
-    urdf_dir: Path | None = typer.Option(None, help="write the best designs here as URDF variants"),
+    figure: Path | None = typer.Option(None, "--figure", metavar="PATH", help="write the Pareto figure to this PNG"),
+    urdf_dir: Path | None = typer.Option(None, metavar="DIR", help="write the best designs here as URDF variants"),
     frequency: bool = typer.Option(False, "--frequency",
                                    help="also each design's first natural frequency (lowest over the task box)"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    quiet: bool = typer.Option(False, "--quiet", help=QUIET),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
+    pareto: Path | None = typer.Option(None, "--pareto", hidden=True, help="old name of --figure"),
 ) -> None:
     """Design sweep: which designs reach the task box, their worst compliance and workspace volume
     (and first natural frequency)."""
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.studies import sweep as sweep_module
 
+    figure, figure_name = renamed(figure, pareto, "--pareto")
     spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model, frequency=frequency)
     sweep_module.check_store(out, "--out")
-    if pareto is not None:
-        check_output(pareto, "--pareto", suffixes=(".png",))
+    if figure is not None:
+        check_output(figure, figure_name, suffixes=(".png",))
+        check_replace(figure, figure_name, overwrite)
     if urdf_dir is not None:
         if not urdf_dir.is_dir():
             fail(f"--urdf-dir: folder {urdf_dir} does not exist")
         check_output(urdf_dir / "h4_sweep.urdf", "--urdf-dir")
+        for old in sorted(urdf_dir.glob("h4_sweep_*.urdf")):  # the names depend on the results: all that could be
+            check_replace(old, "--urdf-dir", overwrite)
     if workers is not None and workers < 1:
         fail(f"--workers must be >= 1 (Dask workers), got {workers}")
+    warn_renamed()
     res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
     front = sweep_module.pareto(res)
     typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
@@ -335,8 +445,8 @@ def sweep(
         hz = f", first frequency {res['first_frequency'][d]:.1f} Hz" if frequency else ""
         typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3"
                    f"{hz}")
-    if pareto is not None:
-        typer.echo(f"wrote {sweep_module.plot_pareto(res, pareto)}")
+    if figure is not None:
+        typer.echo(f"wrote {sweep_module.plot_pareto(res, figure)}")
     if urdf_dir is not None:
         for path in sweep_module.write_best(res, urdf_dir):
             typer.echo(f"wrote {path}")
@@ -345,28 +455,30 @@ def sweep(
 @app.command()
 def cycle(
     time: float = typer.Option(0.5, "--time", help="cycle time, s (25 mm up, 305 mm across, 25 mm down and back)"),
-    payload: list[float] = typer.Option([0.5], help="payload at D, kg; repeat for one column per payload"),
-    figure: Path | None = typer.Option(None, help="write trajectory, load, deflection and torques to this PNG"),
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    payload: list[float] = typer.Option([0.5], metavar="KG", help=f"{PAYLOAD}; repeat for one column per payload"),
+    figure: Path | None = typer.Option(None, "--figure", metavar="PATH",
+                                       help="write trajectory, load, deflection and torques to this PNG"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
     heading: float = typer.Option(0.0, help="direction of the stroke in the horizontal plane, rad (0: +x)"),
     samples: int = typer.Option(400, help="time steps over the cycle"),
-    model: str = typer.Option("consistent", help="'consistent' or 'paper'"),
+    model: Model = typer.Option(CYCLE_MODEL, help="'consistent' (symmetric K; the cycle's dynamics need it) "
+                                "or 'paper' (eq. 30 as printed)"),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
 ) -> None:
     """Tool deflection along the standard pick-and-place cycle (closed-loop inverse dynamics, quasi-static)."""
-    from h4pin.files import check_output
+    from h4pin.files import check_output, check_replace
     from h4pin.studies import cycle as cycle_module
 
     if not (math.isfinite(time) and time > 0):
         fail(f"--time must be a finite number > 0 (s), got {time:g}")
-    for p in payload:
-        if not (math.isfinite(p) and p >= 0):
-            fail(f"--payload must be a finite mass >= 0 (kg), got {p:g}")
+    check_payload(payload)
     if samples < 8:
         fail(f"--samples must be >= 8, got {samples}")
     check_finite("--heading", (heading,))
     if figure is not None:
         check_output(figure, "--figure", suffixes=(".png",))
+        check_replace(figure, "--figure", overwrite)
     h4 = load_robot(variant, urdf)
     results = [cycle_module.run(h4, time, p, samples=samples, model=model, heading=heading) for p in payload]
     typer.echo(cycle_module.report(results))
@@ -376,28 +488,33 @@ def cycle(
 
 @app.command()
 def modes(
-    variant: str | None = typer.Option(None, help="shipped variant (default: prototype)"),
-    urdf: Path | None = typer.Option(None, help="path to an H4 URDF instead of a variant"),
+    variant: Variant | None = typer.Option(None, help=VARIANT),
+    urdf: Path | None = typer.Option(None, help=URDF),
     pose: tuple[float, float, float, float] | None = typer.Option(
         None, metavar="X Y Z THETA", help="pose of D in m and rad (default: all actuators at 45 deg)"),
-    payload: float = typer.Option(0.0, help="point payload at D, kg"),
+    payload: float = typer.Option(0.0, metavar="KG", help=PAYLOAD),
     count: int = typer.Option(4, help="how many modes to print"),
-    map_png: Path | None = typer.Option(None, "--map", help="also map the first frequency over x-y (PNG)"),
-    grid: int = typer.Option(21, help="--map: points per side of the x-y grid"),
-    span: float = typer.Option(0.3, help="--map: side of the x-y grid around the centre, m"),
+    figure: Path | None = typer.Option(None, "--figure", metavar="PATH",
+                                       help="write a map of the first frequency over x-y to this PNG"),
+    grid: int = typer.Option(21, help="--figure: points per side of the x-y grid"),
+    span: float = typer.Option(0.3, help="--figure: side of the x-y grid around the centre, m"),
+    overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
+    map_png: Path | None = typer.Option(None, "--map", hidden=True, help="old name of --figure"),
 ) -> None:
     """Natural frequencies of the elastic robot (actuators locked, link inertias from the URDF)."""
+    figure, figure_name = renamed(figure, map_png, "--map")
     check_finite("--pose", pose)
-    if not (math.isfinite(payload) and payload >= 0):
-        fail(f"--payload must be a finite mass >= 0 in kg, got {payload:g}")
+    check_payload(payload)
     if count < 1:
         fail(f"--count must be >= 1, got {count}")
-    if map_png is not None:
+    if figure is not None:
         if grid < 2 or not (math.isfinite(span) and span > 0):
             fail(f"--grid must be >= 2 and --span a length > 0 (m), got {grid} and {span:g}")
-        from h4pin.files import check_output
+        from h4pin.files import check_output, check_replace
 
-        check_output(map_png, "--map", suffixes=(".png",))
+        check_output(figure, figure_name, suffixes=(".png",))
+        check_replace(figure, figure_name, overwrite)
+    warn_renamed()
     import numpy as np
 
     from h4pin.elastic import Payload
@@ -415,7 +532,7 @@ def modes(
         parts = np.r_[np.abs(tp[:3]), np.abs(tp[3:6]) * 0.1]
         axis = ("x", "y", "z", "rx", "ry", "rz")[int(np.argmax(parts))]
         typer.echo(f"{k + 1:>4}  {res.frequencies[k]:8.1f}  mostly {axis}")
-    if map_png is not None:
+    if figure is not None:
         from h4pin.studies import frequency
 
         c = centre_pose(h4)
@@ -424,17 +541,59 @@ def modes(
         f = ds.first_frequency.values
         typer.echo(f"first frequency over the map: {np.nanmin(f):.1f} to {np.nanmax(f):.1f} Hz "
                    f"({int(np.isfinite(f).sum())} of {f.size} poses reachable and regular)")
-        typer.echo(f"wrote {frequency.plot_map(ds, map_png)}")
+        typer.echo(f"wrote {frequency.plot_map(ds, figure)}")
 
 
 @app.command()
-def warmup() -> None:
+def warmup(
+    quiet: bool = typer.Option(False, "--quiet", help="print only the total, not each kernel as it compiles"),
+) -> None:
     """Compile the compliance kernels into numba's cache now (else the first calls after an install
     use the numpy path while they compile in the background)."""
     from h4pin.warmup import compile_all
 
-    total = compile_all(lambda name, seconds: typer.echo(f"compiled {name} in {seconds:.1f} s"))
+    total = compile_all(None if quiet else lambda name, seconds: typer.echo(f"compiled {name} in {seconds:.1f} s"))
     typer.echo(f"compiled code cached ({total:.1f} s)")
+
+
+#: How docs/cli.md is made (its first line says so).
+REGENERATE = ".venv/bin/python -c 'from h4pin.cli import reference; print(reference(), end=\"\")' > docs/cli.md"
+
+
+def reference() -> str:
+    """``docs/cli.md``: every command and option of ``h4pin``, in Markdown, from the click command
+    tree of the CLI itself (what ``--help`` prints: the same names, values and defaults), then the
+    renamed options (hidden, still taken for one release)."""
+    group = typer.main.get_command(app)
+    root = group.context_class(group, info_name="h4pin")
+    out = [f"<!-- Generated from the CLI by h4pin.cli.reference(); do not edit. Regenerate: {REGENERATE} -->",
+           "", "# Command line reference", "",
+           f"`h4pin COMMAND [OPTIONS]`: {inspect.cleandoc(group.help or '')} Every command also takes `--help`. "
+           "An error prints one line (`error: ...`) and exits with status 2.", "",
+           "Conventions: `--out PATH` is a command's main output, `--figure PATH` its picture (PNG), "
+           "`--figures DIR` a folder of pictures; an existing file is replaced only if h4pin wrote it, or with "
+           "`--overwrite`. `--model` is `paper` unless told (as `h4pin.compliance`; `cycle` aside), `--quiet` hides "
+           "progress bars, "
+           "`--payload KG` is a point mass at D in kg.", ""]
+    old_names = []
+    for name, command in group.commands.items():
+        ctx = command.context_class(command, info_name=name, parent=root)
+        out += [f"## h4pin {name}", "", inspect.cleandoc(command.help or ""), ""]
+        for param in command.get_params(ctx):
+            if param.name == "help":
+                continue
+            if getattr(param, "hidden", False):
+                old_names += [f"- `h4pin {name} {opt}`: now `{RENAMED[opt]}`" for opt in param.opts]
+                continue
+            record = param.get_help_record(ctx)
+            if record is not None:
+                decl, text = record
+                out.append(f"- `{decl}`: {text}" if text else f"- `{decl}`")
+        out.append("")
+    out += ["## Renamed options", "",
+            "Still taken for one release, with a one-line warning on stderr; the new name is the one to use.", "",
+            *old_names]
+    return "\n".join(out) + "\n"
 
 
 #: Commands that call the compiled kernel directly (the others start on the numpy path while it
@@ -471,7 +630,8 @@ def main() -> None:
         # Usage errors of typer's click (vendored or not): one line instead of a usage box.
         if hasattr(exc, "format_message"):
             if exc.format_message():  # empty after the help printed for a bare `h4pin`
-                typer.echo(f"error: {exc.format_message()}", err=True)
+                message = exc.format_message().replace(": Value error, ", ": ")  # typer's coercion says so
+                typer.echo(f"error: {message}", err=True)
             sys.exit(2)
         if hasattr(exc, "exit_code"):
             sys.exit(exc.exit_code)

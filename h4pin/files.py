@@ -7,8 +7,10 @@ one left by a process that was killed (its pid is gone) is removed the next time
 written to that target (:func:`clean_stale`). :func:`check_output` refuses an output path that
 cannot be written, before any work is done.
 
-The rule for existing outputs: a file is replaced (atomically); a folder is never replaced or
-written into unless it is a store h4pin made for the same job (a sweep resumes its own store).
+The rule for existing outputs: a file is replaced (atomically) only if h4pin wrote it
+(:func:`written_by_h4pin`: every kind of file it writes carries a marker, see :data:`MARKER`) or
+the user says so (``--overwrite``, :func:`check_replace`); a folder is never replaced or written
+into unless it is a store h4pin made for the same job (a sweep resumes its own store).
 """
 
 from __future__ import annotations
@@ -25,6 +27,16 @@ from typing import Any
 from h4pin.errors import ParameterError
 
 TMP_TAG = "h4pin-tmp"
+#: What marks a file as h4pin's: in a comment of a text file (MJCF and URDF: their second line;
+#: an HTML page: a comment after its doctype, :func:`write_text`), in a ``Comment`` text chunk of
+#: a PNG (:func:`save_figure`); a NetCDF (HDF5) file or a zarr store carries an ``h4pin``
+#: attribute instead (what it holds: ``atlas``, ``sweep``).
+MARKER = "written by h4pin"
+#: The legend box of a viewer page (:meth:`h4pin.io.viewer.Scene.html`): pages written before the
+#: comment carry it near their end.
+_PAGE_MARKER = 'id="h4pin-legend"'
+_PNG = b"\x89PNG\r\n\x1a\n"
+_HDF5 = b"\x89HDF\r\n\x1a\n"
 
 
 def tmp_prefix(path: Path) -> str:
@@ -88,6 +100,82 @@ def check_output(path: str | Path, what: str, *, folder: bool = False, suffixes:
     return path
 
 
+def _png_marked(f: Any) -> bool:
+    """Whether the PNG open in ``f`` (after its signature) has a text chunk holding :data:`MARKER`."""
+    import struct
+
+    while True:
+        head = f.read(8)
+        if len(head) < 8:
+            return False
+        length, kind = struct.unpack(">I4s", head)
+        if kind in (b"tEXt", b"iTXt", b"zTXt") and length <= 1 << 16:
+            if MARKER.encode() in f.read(length):
+                return True
+            f.seek(4, os.SEEK_CUR)  # CRC
+        elif kind == b"IEND":
+            return False
+        else:
+            f.seek(length + 4, os.SEEK_CUR)
+
+
+def _hdf5_marked(path: Path) -> bool:
+    """Whether the HDF5 (NetCDF4) file ``path`` has an ``h4pin`` global attribute."""
+    try:
+        import h5py
+    except ImportError:  # without the studies extra h4pin writes no NetCDF
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return "h4pin" in f.attrs
+    except (OSError, ValueError):
+        return False
+
+
+def written_by_h4pin(path: str | Path) -> bool:
+    """Whether h4pin wrote ``path``, told from the file itself (its suffix does not matter): a PNG
+    with :data:`MARKER` in a text chunk, a NetCDF4 (HDF5) file or a zarr store with an ``h4pin``
+    attribute, a text file (MJCF, URDF, HTML) with :data:`MARKER` in its first 4 KiB or, for a
+    viewer page, its legend box in its last 64 KiB. A symbolic link is never h4pin's."""
+    path = Path(path)
+    if path.is_symlink() or not path.exists():
+        return False
+    if path.is_dir():
+        for meta in ("zarr.json", ".zattrs"):
+            f = path / meta
+            if f.is_file() and '"h4pin"' in f.read_text(encoding="utf-8", errors="replace"):
+                return True
+        return False
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+            if head.startswith(_PNG):
+                f.seek(len(_PNG))
+                return _png_marked(f)
+            if head.startswith(_HDF5):
+                return _hdf5_marked(path)
+            if MARKER.encode() in head:
+                return True
+            f.seek(max(0, f.seek(0, os.SEEK_END) - (1 << 16)))
+            return _PAGE_MARKER.encode() in f.read()
+    except OSError:
+        return False
+
+
+def check_replace(path: str | Path, what: str, overwrite: bool = False) -> Path:
+    """Refuse, before any work, to replace an existing file that h4pin did not write
+    (:func:`written_by_h4pin`) unless ``overwrite``: :class:`h4pin.ParameterError` naming ``what``
+    (the option) and the file, which is left as it is. A folder is left to the store checks
+    (:func:`h4pin.studies.atlas.check_out`, :func:`h4pin.studies.sweep.check_store`)."""
+    path = Path(path)
+    if overwrite or not (path.exists() or path.is_symlink()) or (path.is_dir() and not path.is_symlink()):
+        return path
+    if not written_by_h4pin(path):
+        raise ParameterError(f"{what} {path} exists and h4pin did not write it: give another path, or --overwrite "
+                             "to replace it")
+    return path
+
+
 def write_atomic(path: str | Path, write: Callable[[str], Any], suffix: str = "") -> Path:
     """Call ``write(tmp)`` on a temporary path beside ``path``, then move it into place (0644).
 
@@ -113,8 +201,15 @@ def write_atomic(path: str | Path, write: Callable[[str], Any], suffix: str = ""
     return path
 
 
+_DOCTYPE = re.compile(r"\s*<!doctype html[^>]*>", re.IGNORECASE)
+
+
 def write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically, mode 0644."""
+    """Write ``text`` (UTF-8) to ``path`` atomically, mode 0644. An HTML page (one that starts with
+    its doctype) gets the comment ``<!-- written by h4pin -->`` after it (:data:`MARKER`)."""
+    m = _DOCTYPE.match(text)
+    if m and MARKER not in text[:4096]:
+        text = f"{text[:m.end()]}<!-- {MARKER} -->{text[m.end():]}"
     return write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
@@ -150,9 +245,11 @@ def same_generated_text(a: str, b: str, rtol: float = 1e-12, atol: float = 1e-12
 
 
 def save_figure(fig: Any, path: str | Path, dpi: int = 100) -> Path:
-    """Save a matplotlib figure to ``path`` atomically, mode 0644, and close it if pyplot made it."""
+    """Save a matplotlib figure to ``path`` atomically, mode 0644, and close it if pyplot made it.
+    A PNG carries :data:`MARKER` in a ``Comment`` text chunk."""
+    metadata = {"Comment": MARKER} if Path(path).suffix.lower() == ".png" else None
     try:
-        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, metadata=metadata))
     finally:
         import matplotlib.pyplot as plt
 

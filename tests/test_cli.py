@@ -10,8 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import typer.main
 
 import h4pin
+from h4pin import cli
 from h4pin.kinematics.closed_form import CENTRE_Q, centre_pose
 from h4pin.stiffness.api import compliance
 from h4pin.studies.paper import PAPER_COMPUTED
@@ -42,10 +44,12 @@ def test_table2_prints_the_computed_block(proto, centre):
 
 @pytest.mark.parametrize(
     ("args", "message"),
-    [(["table2", "--variant", "nope"], "unknown H4 variant"),
+    [(["table2", "--variant", "nope"], "Invalid value for '--variant': 'nope' is not one of 'prototype', "),
      (["table2", "--variant", "symmetric"], "singular"),
      (["table2", "--urdf", "missing.urdf"], "no URDF file"),
-     (["table2", "--model", "exact"], "model must be one of")],
+     (["table2", "--model", "exact"], "Invalid value for '--model': 'exact' is not one of 'paper', 'consistent'."),
+     (["export", "--out", "h4.xml", "--mjcf", "h4.xml"], "give --out, not both --out and --mjcf"),
+     (["export"], "Missing option '--out'.")],
 )
 def test_cli_errors_are_one_line(args, message):
     out = run_cli(*args)
@@ -77,3 +81,129 @@ def test_constrained_dynamics_keeps_the_loops_closed(proto):
     moved = np.linalg.norm(rows[-1][2] - centre_pose(proto)[:3])
     assert drift < 1e-7, f"closure drift {drift:.1e} m"
     assert moved > 1e-5  # the torque step does move the robot
+
+
+COMMANDS = typer.main.get_command(cli.app).commands
+
+
+def test_cli_reference_is_generated_from_the_cli():
+    """docs/cli.md is h4pin.cli.reference() (its first line says how to regenerate it): every
+    command, and every option of each once."""
+    text = (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
+    assert text == cli.reference(), f"docs/cli.md is stale; regenerate it: {cli.REGENERATE}"
+    assert cli.REGENERATE in text.splitlines()[0]
+    for name, command in COMMANDS.items():
+        assert text.count(f"\n## h4pin {name}\n") == 1, name
+        section = text.split(f"\n## h4pin {name}\n")[1].split("\n## ")[0].splitlines()
+        for param in command.params:
+            if not param.hidden:
+                opt = param.opts[0]
+                assert sum(line.startswith((f"- `{opt} ", f"- `{opt}`")) for line in section) == 1, (name, opt)
+
+
+def test_one_convention_over_the_commands():
+    """--model defaults to 'paper' (as h4pin.compliance; cycle aside); outputs are --out, --figure or --figures
+    (the old names hidden) with --overwrite; --quiet wherever a progress bar runs; --payload is
+    one shape (KG, >= 0)."""
+    import inspect
+
+    assert inspect.signature(compliance).parameters["model"].default == "paper"
+    for name, command in COMMANDS.items():
+        params = {p.name: p for p in command.params}
+        visible = {opt for p in command.params if not p.hidden for opt in p.opts}
+        if "model" in params:  # cycle: cli.CYCLE_MODEL, until its dynamics take the paper model
+            assert params["model"].default == ("consistent" if name == "cycle" else "paper"), name
+        assert not visible & set(cli.RENAMED), name
+        writes = bool(visible & {"--out", "--figure", "--figures"})
+        assert ("--overwrite" in visible) == writes, name
+        assert ("--quiet" in visible) == (name in ("view", "tolerance", "atlas", "sweep", "warmup")), name
+        if "payload" in params:
+            assert params["payload"].metavar == "KG", name
+    hidden = {opt for c in COMMANDS.values() for p in c.params if p.hidden for opt in p.opts}
+    assert hidden == set(cli.RENAMED)
+
+
+def run_main(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
+    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err
+
+
+@pytest.mark.parametrize("command", [name for name, c in COMMANDS.items() if any(p.name == "model" for p in c.params)])
+def test_a_wrong_model_is_a_usage_error_naming_the_choices(command, monkeypatch, capsys):
+    code, _, err = run_main([command, "--model", "exact"], monkeypatch, capsys)
+    assert code == 2
+    assert err == "error: Invalid value for '--model': 'exact' is not one of 'paper', 'consistent'.\n"
+
+
+def test_old_option_names_still_work_with_a_warning(tmp_path, monkeypatch, capsys):
+    """An old name is taken, with a one-line warning on stderr once the arguments passed their
+    checks: its errors stay one line and name the option as typed."""
+    code, _, err = run_main(["modes", "--map", str(tmp_path / "m.txt")], monkeypatch, capsys)
+    assert code == 2 and err == f"error: --map {tmp_path / 'm.txt'}: the name must end in .png\n"
+    out = run_cli("export", "--mjcf", str(tmp_path / "h4.xml"))
+    assert out.returncode == 0, out.stderr
+    assert out.stderr == "h4pin: --mjcf is deprecated, use --out (--mjcf goes in the next release)\n"
+    assert out.stdout == f"wrote {tmp_path / 'h4.xml'}\n" and "<mujoco" in (tmp_path / "h4.xml").read_text()
+
+
+#: Each command that writes a file: its arguments (small and quick), the option and name of the file.
+WRITERS = {
+    "export": (["export"], "--out", "notes.txt"),
+    "atlas": (["atlas", "--x", "-0.1", "0.1", "2", "--y", "0", "0.1", "2", "--quiet"], "--out", "user.nc"),
+    "modes": (["modes", "--grid", "2", "--span", "0.1"], "--figure", "user.png"),
+    "tolerance": (["tolerance", "--robots", "2", "--no-sensitivity", "--quiet"], "--figure", "user.png"),
+    "view": (["view"], "--out", "notes.txt"),
+}
+#: A user's file of each kind (the PNG and NetCDF ones start as those formats do).
+USER_FILES = {".txt": b"a user's own notes\n", ".png": b"\x89PNG\r\n\x1a\nnot h4pin's",
+              ".nc": b"\x89HDF\r\n\x1a\nnot h4pin's"}
+
+
+@pytest.mark.parametrize("command", WRITERS)
+def test_a_user_file_is_kept_unless_overwrite(command, tmp_path):
+    """An existing file h4pin did not write: exit 2, one line naming it, the file byte for byte as
+    it was; --overwrite replaces it; a file h4pin wrote is replaced without --overwrite."""
+    args, option, name = WRITERS[command]
+    target = tmp_path / name
+    user = USER_FILES[target.suffix]
+    target.write_bytes(user)
+    refused = run_cli(*args, option, str(target))
+    assert refused.returncode == 2, refused.stderr
+    assert refused.stderr == (f"error: {option} {target} exists and h4pin did not write it: give another path, or "
+                              "--overwrite to replace it\n")
+    assert target.read_bytes() == user and [p.name for p in tmp_path.iterdir()] == [name]
+
+    first = run_cli(*args, option, str(target), "--overwrite")
+    assert first.returncode == 0, first.stderr
+    assert target.read_bytes() != user and f"wrote {target}" in first.stdout
+    inode = target.stat().st_ino
+    again = run_cli(*args, option, str(target))
+    assert again.returncode == 0, again.stderr
+    assert target.stat().st_ino != inode and f"wrote {target}" in again.stdout  # a new file, renamed into place
+    assert "Traceback" not in refused.stderr + first.stderr + again.stderr
+
+
+def test_h4pin_tells_its_own_files(tmp_path):
+    """The markers: the MJCF and URDF comments, a page's comment, a PNG text chunk; a file of the
+    same format that h4pin did not write, a link or a missing file is not h4pin's."""
+    from matplotlib.figure import Figure
+
+    from h4pin.files import save_figure, write_text, written_by_h4pin
+
+    assert written_by_h4pin(ROOT / "urdf" / "h4_prototype.urdf")
+    assert written_by_h4pin(ROOT / "mjcf" / "h4_prototype.xml")
+    page = write_text(tmp_path / "page.txt", "\n <!DOCTYPE html><html><body></body></html>")
+    assert page.read_text().startswith("\n <!DOCTYPE html><!-- written by h4pin -->") and written_by_h4pin(page)
+    fig = Figure()
+    fig.subplots().plot([0, 1])
+    assert written_by_h4pin(save_figure(fig, tmp_path / "f.png"))
+    fig = Figure()
+    fig.subplots().plot([0, 1])
+    fig.savefig(tmp_path / "g.png")  # matplotlib's own
+    (tmp_path / "link.png").symlink_to(tmp_path / "f.png")
+    (tmp_path / "notes.txt").write_text("<!DOCTYPE html> my page")
+    for other in ("g.png", "link.png", "notes.txt", "missing.png"):
+        assert not written_by_h4pin(tmp_path / other), other

@@ -260,3 +260,14 @@ def test_cli(tmp_path):
         assert bad.returncode == 2 and bad.stderr.startswith("error: ") and bad.stderr.count("\n") == 1
     far = run("--samples", "16", "--heading", "0", "--variant", "prototype", "--time", "0.5")
     assert far.returncode == 0
+
+
+def test_the_paper_model_runs_and_vibrates_with_the_symmetric_k(h4):
+    """model='paper' (a K that is not symmetric): the quasi-static answer is the paper's, the
+    vibration and f1 the consistent model's, whose F and T columns are the same."""
+    paper, consistent = (cy.run(h4, 0.5, samples=64, model=m) for m in ("paper", "consistent"))
+    scale = np.abs(consistent.dynamic_deflection).max()
+    np.testing.assert_allclose(paper.dynamic_deflection, consistent.dynamic_deflection, rtol=0, atol=1e-12 * scale)
+    assert paper.f1_plate == pytest.approx(consistent.f1_plate, rel=1e-12) and np.isfinite(paper.peak_norm)
+    np.testing.assert_allclose(paper.deflection[:, :6], consistent.deflection[:, :6], rtol=0,
+                               atol=1e-6 * np.abs(consistent.deflection).max())

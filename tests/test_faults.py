@@ -133,8 +133,8 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["view", "--html", "/proc/v.html"], "cannot write in /proc"),
         (["tolerance", "--figure", "/proc/t.png"], "cannot write in /proc"),
         (["export", "--mjcf", "/proc/h4.xml"], "cannot write in /proc"),
-        (["table2", "--variant", "nope"], "unknown H4 variant"),
-        (["table2", "--model", "exact"], "model must be one of"),
+        (["table2", "--variant", "nope"], "Invalid value for '--variant'"),
+        (["table2", "--model", "exact"], "Invalid value for '--model'"),
     ]
 
 

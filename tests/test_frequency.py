@@ -60,7 +60,7 @@ def test_cli_prints_the_modes_and_writes_the_map(tmp_path, proto, centre):
 
     root = Path(__file__).resolve().parent.parent
     png = tmp_path / "f.png"
-    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "modes", "--payload", "0.5", "--map", str(png),
+    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "modes", "--payload", "0.5", "--figure", str(png),
                           "--grid", "3", "--span", "0.1"], capture_output=True, text=True, cwd=root, timeout=120)
     assert out.returncode == 0, out.stderr
     rows = [line.split() for line in out.stdout.splitlines() if line.split() and line.split()[0].isdigit()]
@@ -69,7 +69,7 @@ def test_cli_prints_the_modes_and_writes_the_map(tmp_path, proto, centre):
     assert png.is_file() and png.stat().st_size > 1000
     for args, message in ((["--payload", "-1"], "--payload must be a finite mass >= 0"),
                           (["--count", "0"], "--count must be >= 1"),
-                          (["--map", str(tmp_path / "m.txt")], "--map"),
+                          (["--figure", str(tmp_path / "m.txt")], "--figure"),
                           (["--pose", "0", "0", "-2", "0"], "cannot reach")):
         bad = subprocess.run([sys.executable, "-m", "h4pin.cli", "modes", *args], capture_output=True, text=True,
                              cwd=root, timeout=120)

@@ -301,7 +301,7 @@ def test_refuses_an_open_configuration_and_a_missing_or_old_mujoco(monkeypatch):
 
 def test_export_cli_writes_a_loadable_file(tmp_path):
     target = tmp_path / "h4.xml"
-    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--mjcf", str(target), "--variant", "symmetric"],
+    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--out", str(target), "--variant", "symmetric"],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     assert stat.S_IMODE(target.stat().st_mode) == 0o644
@@ -313,8 +313,8 @@ def test_export_cli_writes_a_loadable_file(tmp_path):
 
 @pytest.mark.parametrize("where", ["missing/h4.xml", "."])
 def test_export_cli_bad_path_is_one_line(tmp_path, where):
-    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--mjcf", str(tmp_path / where)],
+    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--out", str(tmp_path / where)],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 2
-    assert out.stderr.count("\n") == 1 and out.stderr.startswith("error: --mjcf ")
+    assert out.stderr.count("\n") == 1 and out.stderr.startswith("error: --out ")
     assert list(tmp_path.iterdir()) == []

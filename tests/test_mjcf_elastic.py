@@ -249,7 +249,7 @@ def test_text_round_trip_and_cli(h4, tmp_path):
     np.testing.assert_allclose(back.key_qpos, fresh.key_qpos, rtol=0, atol=1e-12, err_msg="key_qpos")
     assert back.opt.timestep == mjcf.ELASTIC_TIMESTEP
     target = tmp_path / "h4.xml"
-    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--mjcf", str(target), "--elastic"],
+    out = subprocess.run([sys.executable, "-m", "h4pin.cli", "export", "--out", str(target), "--elastic"],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     assert stat.S_IMODE(target.stat().st_mode) == 0o644

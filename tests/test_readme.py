@@ -137,7 +137,8 @@ def expected_status(comment: str) -> int:
 
 
 def starts_a_server(args: list[str], comment: str) -> bool:
-    return args[2:4] == ["h4pin.cli", "view"] and "--html" not in args and expected_status(comment) == 0
+    writes = "--html" in args or "--out" in args  # a page written, no server
+    return args[2:4] == ["h4pin.cli", "view"] and not writes and expected_status(comment) == 0
 
 
 def run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:

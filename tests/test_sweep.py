@@ -120,7 +120,7 @@ def test_best_designs_are_loadable_urdf_variants(local, tmp_path):
 
 def test_cli_sweep(tmp_path):
     out = subprocess.run([sys.executable, "-m", "h4pin.cli", "sweep", "--out", str(tmp_path / "c.zarr"), "--designs",
-                          "6", "--chunk", "3", "--quiet", "--pareto", str(tmp_path / "p.png")],
+                          "6", "--chunk", "3", "--quiet", "--figure", str(tmp_path / "p.png")],
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
     res = sweep.load(tmp_path / "c.zarr")

@@ -216,7 +216,7 @@ def test_remote_reference_check_catches_a_remote_script():
 
 
 def test_cli_writes_a_self_contained_page(tmp_path):
-    out = run_cli("view", "--html", str(tmp_path / "h4.html"), "--load", "0", "0", "-10", "--field", umask=0o077)
+    out = run_cli("view", "--out", str(tmp_path / "h4.html"), "--load", "0", "0", "-10", "--field", umask=0o077)
     assert out.returncode == 0, out.stderr
     page = (tmp_path / "h4.html").read_text()
     assert "h4pin-legend" in page and "x100" in out.stdout and "field: 50 of 50 poses" in out.stdout
@@ -253,7 +253,7 @@ def test_screenshot_is_world_readable(proto, centre, tmp_path):
      (["--scale", "-2"], "--scale must be a finite number > 0 (mm per um/N), got -2"),
      (["--exaggeration", "nan"], "--exaggeration must be a finite number > 0, got nan"),
      (["--exaggeration", "inf"], "--exaggeration must be a finite number > 0, got inf"),
-     (["--model", "exact"], "model must be one of"),
+     (["--model", "exact"], "Invalid value for '--model': 'exact' is not one of 'paper', 'consistent'"),
      (["--mode", "0"], "--mode must be >= 1"),
      (["--mode", "99"], "mode index must be an integer in 0..15"),
      (["--mode", "1", "--payload", "-1"], "--payload must be a finite mass >= 0"),
@@ -261,7 +261,7 @@ def test_screenshot_is_world_readable(proto, centre, tmp_path):
 )
 def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
     target = tmp_path / "h4.html"
-    out = run_cli("view", "--html", str(target), *args)
+    out = run_cli("view", "--out", str(target), *args)
     assert out.returncode == 2
     assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert "Traceback" not in out.stderr
@@ -271,9 +271,9 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, args, message):
 @pytest.mark.parametrize("where", ["folder", "missing folder"])
 def test_cli_html_must_name_a_file_in_an_existing_folder(tmp_path, where):
     target = tmp_path if where == "folder" else tmp_path / "nope" / "h4.html"
-    out = run_cli("view", "--html", str(target))
+    out = run_cli("view", "--out", str(target))
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
-    assert out.stderr.startswith(f"error: --html {target}")
+    assert out.stderr.startswith(f"error: --out {target}")
     assert ("is a folder" if where == "folder" else "does not exist") in out.stderr
     assert list(tmp_path.iterdir()) == []
 

@@ -528,7 +528,10 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     r = np.einsum("nab,b->na", cf.rot_z(pose[:, 3]), o)
     tool_d = dtp[:, :3] + cf.cross(dtp[:, 3:6], r)
     terms = {name: np.einsum("nij,nj->ni", res.terms[name], load)[:, :3] for name in res.terms}
-    pairs = list(zip(res.matrix, rows, strict=True))
+    # the vibration needs a symmetric K: the paper's is not (erratum 4, the t1, t2 columns), so
+    # the plate's frequency and vibration take the consistent model's (the same F and T columns)
+    sym = res.matrix if model == "consistent" else compliance(h4, pose, "consistent").matrix
+    pairs = list(zip(sym, rows, strict=True))
     f1_plate = min(_natural_frequency(np.linalg.inv(k), s.inertia_plate) for k, s in pairs)
     sub = np.ix_(_POSE_ROWS, _POSE_ROWS)  # static condensation to [x, y, z, theta]: the 4x4 compliance block
     f1_robot = min(_natural_frequency(np.linalg.inv(k[sub]), s.inertia_x) for k, s in pairs)
@@ -538,7 +541,7 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     share = np.cumsum(power) / power.sum() if power.sum() > 0 else np.ones_like(power)
     f99 = float(np.argmax(share >= 0.99)) / cycle.period
     inertia = np.array([s.inertia_plate for s in rows])
-    dynamic = dynamic_deflection(res.matrix, inertia, load, cycle.period, damping)
+    dynamic = dynamic_deflection(sym, inertia, load, cycle.period, damping)
     return CycleResult(cycle, payload, at, model, t, pose, vel, acc, np.array([s.q for s in rows]),
                        np.array([s.v for s in rows]), np.array([s.a for s in rows]),
                        np.array([s.torque for s in rows]), np.array([s.closure_forces for s in rows]), load, dtp,
