@@ -25,6 +25,7 @@ command was started with ignored (``nohup``, a shell's background job) stays ign
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import signal
@@ -179,7 +180,24 @@ def table2(
     typer.echo((report_match if match else report)(load_robot(variant, urdf), model=model))
 
 
+def _restoring_signals(command: Any) -> Any:
+    """The command with the process's SIGINT, SIGTERM and SIGHUP handlers restored when it
+    returns: run in-process (a test, a notebook), it leaves its caller's handlers as they were."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, *STOP_SIGNALS)}
+        try:
+            return command(*args, **kwargs)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    return wrapper
+
+
 @app.command()
+@_restoring_signals
 def view(
     variant: Variant | None = typer.Option(None, help=VARIANT),
     urdf: Path | None = typer.Option(None, help=URDF),

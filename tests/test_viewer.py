@@ -295,7 +295,8 @@ def start_view(*args: str) -> tuple[subprocess.Popen, int]:
 
 @pytest.mark.parametrize(
     ("sig", "code", "host"),
-    [(signal.SIGINT, 130, None), (signal.SIGTERM, 143, None), (signal.SIGHUP, 129, "0.0.0.0")],
+    [(signal.SIGINT, 130, None), pytest.param(signal.SIGTERM, 143, None, marks=pytest.mark.slow),
+     pytest.param(signal.SIGHUP, 129, "0.0.0.0", marks=pytest.mark.slow)],
 )
 def test_cli_server_stops_on_signals(sig, code, host):
     """Without --html: the URL is printed; the server listens on 127.0.0.1 unless --host says
@@ -382,3 +383,17 @@ def test_mode_animation_moves_the_plate_by_the_mode_shape(proto, centre):
     assert np.linalg.norm(motion.act(d) - d - tp[:3]) < 1e-9 * max(1.0, np.linalg.norm(tp[:3]))
     assert np.linalg.norm(pin.log3(motion.rotation) - tp[3:6]) < 1e-9
     assert np.linalg.norm(tp[:3]) > 1e-3  # visible: millimetres on screen
+
+
+def test_view_in_process_leaves_the_callers_signal_handlers(tmp_path, monkeypatch, capsys):
+    """Run in-process (a test, a notebook), `view` restores SIGINT, SIGTERM and SIGHUP as it found
+    them: a process it then spawns must still stop on Ctrl-C (its SIG_IGN used to be inherited)."""
+    from h4pin import cli
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    for argv in (["view", "--out", str(tmp_path / "v.html")], ["view", "--host", "999.1.1.1"]):
+        monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
+        with pytest.raises(SystemExit):
+            cli.main()
+        capsys.readouterr()
+        assert {sig: signal.getsignal(sig) for sig in before} == before, argv
