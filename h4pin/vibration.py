@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Natural frequencies and modes of the elastic H4 (``h4pin.modes``): the compiled twin
 (:mod:`h4pin.stiffness.frequencies`) for robots whose parallelograms are exact, once compiled, or
-the Pinocchio route (:func:`h4pin.elastic.modes.modes`, ``crba`` on the elastic model) for any
+the Pinocchio route (:func:`h4pin.elastic.modal.modes`, ``crba`` on the elastic model) for any
 robot and for the mode shapes. The two agree to round-off (``tests/test_frequencies.py``)."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import pinocchio as pin
 
 from h4pin import verdicts
 from h4pin.elastic.h4 import ElasticH4, elastic_model
-from h4pin.elastic.modes import Modes, Payload
-from h4pin.elastic.modes import modes as pinocchio_modes
+from h4pin.elastic.modal import Modes, Payload
+from h4pin.elastic.modal import modes as pinocchio_modes
 from h4pin.errors import ParameterError
 from h4pin.inputs import check_choice, check_flag, describe, real_array
 from h4pin.kinematics.closed_form import as_poses
@@ -68,7 +68,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
     The elastic H4 of :func:`h4pin.elastic_model` (every compliance a spring, the robot's own
     elements; actuators locked; the URDF's link inertias; an optional rigid payload on the
     central bar; massless motions condensed): :mod:`h4pin.stiffness.frequencies` (compiled,
-    its module docstring) or :func:`h4pin.elastic.modes.modes` (Pinocchio's ``crba`` on the
+    its module docstring) or :func:`h4pin.elastic.modal.modes` (Pinocchio's ``crba`` on the
     elastic model), which agree to round-off (``tests/test_frequencies.py``).
 
     Args:

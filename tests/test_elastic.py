@@ -31,7 +31,7 @@ from h4pin.elastic import (
     UnassembledError,
     UnrestrainedMotionError,
     VirtualJoint,
-    compliance,
+    compliance_matrix,
     elastic_model,
     insert_joints,
 )
@@ -58,7 +58,7 @@ def test_elastic_h4_equals_the_consistent_model(variant, elements):
     em = elastic_model(h4)
     xs = sample_poses(h4, 6, seed=1)
     assert np.ptp(xs, axis=0).min() > 0.05  # spread over the workspace (x, y, z in m; theta in rad)
-    errors = [rel(em.compliance(x), h4pin.compliance(h4, x, model="consistent").matrix) for x in xs]
+    errors = [rel(em.compliance_matrix(x), h4pin.compliance(h4, x, model="consistent").matrix) for x in xs]
     assert max(errors) <= TOL, errors
 
 
@@ -75,7 +75,7 @@ def test_each_element_kind_is_its_own_term(variant_name, kind):
         ref = h4pin.compliance(h4, x, model="consistent", terms=True)
         term, norm = ref.terms[kind], np.linalg.norm(ref.matrix)
         assert np.linalg.norm(term) > 1e-3 * norm
-        assert np.linalg.norm(em.compliance(x) - em0.compliance(x) - term) <= TOL * norm
+        assert np.linalg.norm(em.compliance_matrix(x) - em0.compliance_matrix(x) - term) <= TOL * norm
 
 
 def test_elastic_h4_names_its_springs_from_the_robot(proto):
@@ -107,7 +107,7 @@ def test_elastic_h4_refuses_the_singular_pose_as_the_paper_model_does(sym):
     with pytest.raises(h4pin.SingularPoseError):
         h4pin.compliance(sym, x, model="consistent")
     with pytest.raises(UnrestrainedMotionError) as err:
-        elastic_model(sym).compliance(x)
+        elastic_model(sym).compliance_matrix(x)
     assert isinstance(err.value, h4pin.SingularPoseError) and "plate" in err.value.joints
 
 
@@ -117,9 +117,9 @@ def test_elastic_h4_gives_one_answer_per_thread(proto):
 
     em = elastic_model(proto)
     xs = sample_poses(proto, 4, seed=9)
-    serial = [em.compliance(x) for x in xs]
+    serial = [em.compliance_matrix(x) for x in xs]
     with ThreadPoolExecutor(4) as pool:
-        threaded = list(pool.map(em.compliance, xs))
+        threaded = list(pool.map(em.compliance_matrix, xs))
     for a, b in zip(serial, threaded, strict=True):  # round-off apart (BLAS may split work differently)
         assert rel(b, a) <= 1e-13
 
@@ -203,8 +203,8 @@ FIVE_BAR_POSES = [(1.2, 1.9), (0.9, 2.4), (1.6, 1.4), (0.5, 1.8), (1.0, 1.0)]
 @pytest.mark.parametrize("theta", FIVE_BAR_POSES)
 def test_five_bar_equals_the_hand_derived_compliance(theta):
     model, cms = five_bar()
-    c = compliance(model, cms, five_bar_q(model, theta), locked=["motor_1", "motor_2"], stiffness=FIVE_BAR_STIFFNESS,
-                   outputs=[FrameOutput("tip_1", rows=(0, 1))])
+    c = compliance_matrix(model, cms, five_bar_q(model, theta), locked=["motor_1", "motor_2"],
+                          stiffness=FIVE_BAR_STIFFNESS, outputs=[FrameOutput("tip_1", rows=(0, 1))])
     assert rel(c, five_bar_by_hand(theta)) <= TOL
 
 
@@ -229,7 +229,7 @@ def test_five_bar_built_by_inserting_joints_equals_the_urdf_one():
     model, closures, q_index = insert_joints(rigid, insertions, cms, q_ref=q_rigid)
     q = np.zeros(model.nq)
     q[q_index] = q_rigid
-    c = compliance(model, closures, q, locked=["motor_1", "motor_2"], stiffness=FIVE_BAR_STIFFNESS,
+    c = compliance_matrix(model, closures, q, locked=["motor_1", "motor_2"], stiffness=FIVE_BAR_STIFFNESS,
                    outputs=[FrameOutput("tip_2", rows=(0, 1))])
     assert rel(c, five_bar_by_hand(theta)) <= TOL
 
@@ -239,8 +239,9 @@ def test_five_bar_joint_output_is_the_dual_of_a_joint_torque():
     load; by hand, elbow_1 = atan2(E - A_1) - theta_1, differentiated with the same G."""
     model, cms = five_bar()
     theta = FIVE_BAR_POSES[0]
-    c = compliance(model, cms, five_bar_q(model, theta), locked=["motor_1", "motor_2"], stiffness=FIVE_BAR_STIFFNESS,
-                   outputs=[FrameOutput("tip_1", rows=(0, 1)), JointOutput("elbow_1", scale=-1.0)])
+    c = compliance_matrix(model, cms, five_bar_q(model, theta), locked=["motor_1", "motor_2"],
+                          stiffness=FIVE_BAR_STIFFNESS,
+                          outputs=[FrameOutput("tip_1", rows=(0, 1)), JointOutput("elbow_1", scale=-1.0)])
     a, e = five_bar_points(theta)
     u = (e - a) / L2
     t = np.column_stack([-np.sin(theta), np.cos(theta)])
@@ -264,22 +265,22 @@ def test_five_bar_errors():
     bent = q.copy()
     bent[model.joints[model.getJointId("motor_1")].idx_q] += 1e-3
     with pytest.raises(UnassembledError, match="does not hold"):
-        compliance(model, cms, bent, stiffness=FIVE_BAR_STIFFNESS, **kw)
+        compliance_matrix(model, cms, bent, stiffness=FIVE_BAR_STIFFNESS, **kw)
     free = {k: v for k, v in FIVE_BAR_STIFFNESS.items() if k != "spring_1"}
     with pytest.raises(UnrestrainedMotionError) as err:
-        compliance(model, cms, q, stiffness=free, **kw)
+        compliance_matrix(model, cms, q, stiffness=free, **kw)
     assert "spring_1" in err.value.joints and "spring_2" not in err.value.joints
     assert err.value.cond == np.inf or err.value.cond > 1e15
     # distal links in line (|A_1 - A_2| = 2 L2): the tip moves across them, straining nothing
     assert 2 * L2 == pytest.approx(2 * HALF + 2 * L1)  # reached with both arms along the base
     with pytest.raises(h4pin.SingularPoseError):
-        compliance(model, cms, five_bar_q(model, (np.pi, 0.0)), stiffness=FIVE_BAR_STIFFNESS, **kw)
+        compliance_matrix(model, cms, five_bar_q(model, (np.pi, 0.0)), stiffness=FIVE_BAR_STIFFNESS, **kw)
     with pytest.raises(h4pin.ParameterError, match="both locked and elastic"):
-        compliance(model, cms, q, stiffness={**FIVE_BAR_STIFFNESS, "motor_1": 1.0}, **kw)
+        compliance_matrix(model, cms, q, stiffness={**FIVE_BAR_STIFFNESS, "motor_1": 1.0}, **kw)
     with pytest.raises(h4pin.ParameterError, match="no joint named"):
-        compliance(model, cms, q, stiffness={"nope": 1.0}, **kw)
+        compliance_matrix(model, cms, q, stiffness={"nope": 1.0}, **kw)
     with pytest.raises(h4pin.ParameterError, match="finite and > 0"):
-        compliance(model, cms, q, stiffness={**FIVE_BAR_STIFFNESS, "spring_1": -1.0}, **kw)
+        compliance_matrix(model, cms, q, stiffness={**FIVE_BAR_STIFFNESS, "spring_1": -1.0}, **kw)
 
 
 # --- docs/elastic.md ----------------------------------------------------------------------------

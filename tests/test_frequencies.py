@@ -14,7 +14,7 @@ from conftest import sample_poses
 import h4pin
 from h4pin import verdicts, vibration
 from h4pin.description.elements import ILLUSTRATIVE
-from h4pin.elastic.modes import modes as pinocchio_modes
+from h4pin.elastic.modal import modes as pinocchio_modes
 from h4pin.stiffness import frequencies as fr
 
 IDEAL = [name for name in h4pin.VARIANTS if h4pin.load(name).geometry.ideal]

@@ -82,10 +82,10 @@ def test_the_elastic_h4_is_a_mechanism(h4, pose):
     """The H4's elastic model as a Mechanism: its compliance at D is ElasticH4's, and its modes
     with the elastic model's masses are h4pin.modes' (Pinocchio route and compiled twin)."""
     em = h4pin.elastic_model(h4)
-    mech = em.mechanism
+    mech = Mechanism.from_elastic(em)
     q = em.configuration(pose)
     C = mech.compliance(q, em.stiffness, ["D"], locked=em.locked)
-    np.testing.assert_allclose(C, em.compliance(pose)[:6, :6], rtol=0, atol=1e-12 * np.abs(C).max())
+    np.testing.assert_allclose(C, em.compliance_matrix(pose)[:6, :6], rtol=0, atol=1e-12 * np.abs(C).max())
     got = mech.modes(q, em.stiffness, locked=em.locked).frequencies
     for method in ("pinocchio", "auto"):
         want = h4pin.modes(h4, pose, method=method).frequencies
@@ -229,3 +229,23 @@ def test_the_viewer_draws_any_mechanism_and_its_ellipsoid(no_process_left):
     np.testing.assert_allclose(np.sort(drawn), np.sort(np.maximum(radii, 1e-5)), rtol=1e-6)
     with pytest.raises(ParameterError, match="Mechanism"):
         viewer.show_mechanism("five bar", q)
+
+
+def test_one_meaning_per_name_and_the_old_names_warn(h4, pose):
+    """h4pin.compliance returns a Compliance; the arrays are compliance_matrix (engine, ElasticH4);
+    h4pin.elastic.modes is the function, its module h4pin.elastic.modal. The old names work one
+    release, with a DeprecationWarning, and give the same numbers."""
+    import h4pin.elastic as elastic
+    from h4pin.elastic import engine, modal
+
+    assert callable(elastic.modes) and elastic.modes is modal.modes
+    em = h4pin.elastic_model(h4)
+    new = em.compliance_matrix(pose)
+    with pytest.warns(DeprecationWarning, match="compliance_matrix"):
+        old = em.compliance(pose)
+    np.testing.assert_array_equal(old, new)
+    with pytest.warns(DeprecationWarning, match="compliance_matrix"):
+        assert elastic.compliance is engine.compliance_matrix
+    with pytest.warns(DeprecationWarning, match="h4pin.elastic.modal"):
+        from h4pin.elastic.modes import mass_model
+    assert mass_model is modal.mass_model

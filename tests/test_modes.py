@@ -27,7 +27,7 @@ from conftest import sample_poses
 import h4pin
 from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.elastic import Modes, Payload, elastic_model, modes
-from h4pin.elastic.modes import mass_model
+from h4pin.elastic.modal import mass_model
 from h4pin.kinematics.closed_form import centre_pose, rot_z
 
 TOL = 1e-8

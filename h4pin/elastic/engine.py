@@ -9,7 +9,7 @@ The mechanism is a ``pin.Model`` (a tree) closed by ``pin.RigidConstraintModel``
   velocity coordinates, stiffness ``k`` (N.m/rad for a rotation, N/m for a translation);
 * **free**: every other joint (the passive joints of the linkage).
 
-:func:`compliance` gives the compliance of chosen outputs (frames and joints) at an assembled
+:func:`compliance_matrix` gives the compliance of chosen outputs (frames and joints) at an assembled
 configuration ``q``. With ``A = [Jc; S_locked]`` the closure Jacobian (Pinocchio's
 ``getConstraintsJacobian``) stacked on the rows that select the locked velocities, every admissible
 small motion is ``dq = N z`` with N a basis of ``null(A)`` (SVD). The springs store
@@ -252,7 +252,7 @@ def _scaling(model: pin.Model, data: pin.Data, constraint_models: Any, length: f
     return col, np.array(row)
 
 
-def compliance(model: pin.Model, constraint_models: Any, q: np.ndarray, *, locked: Sequence[str],
+def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *, locked: Sequence[str],
                stiffness: Mapping[str, Any], outputs: Sequence[Output], data: pin.Data | None = None,
                constraint_datas: Any = None, closure_tol: float = CLOSURE_TOL,
                singular_cond: float = SINGULAR_COND) -> np.ndarray:
@@ -328,6 +328,17 @@ def compliance(model: pin.Model, constraint_models: Any, q: np.ndarray, *, locke
     chol = np.linalg.cholesky(h)
     x = np.linalg.solve(chol, g.T)
     return x.T @ x
+
+
+def compliance(*args: Any, **kwargs: Any) -> np.ndarray:
+    """Deprecated name of :func:`compliance_matrix` (``h4pin.compliance`` returns a
+    ``Compliance`` object; this returns an array): kept one release."""
+    import warnings
+
+    warnings.warn("h4pin.elastic.compliance is now h4pin.elastic.compliance_matrix (it returns an array; "
+                  "h4pin.compliance returns a Compliance); the old name goes in the next release",
+                  DeprecationWarning, stacklevel=2)
+    return compliance_matrix(*args, **kwargs)
 
 
 def _unrestrained(model: pin.Model, frozen: np.ndarray, cond: float) -> UnrestrainedMotionError:

@@ -4,7 +4,7 @@
 Every compliance of eq. 30, and every optional element the robot carries
 (:attr:`H4.elements <h4pin.H4>`), becomes virtual joints with springs inserted into a copy of the
 robot's own ``pin.Model`` (:func:`h4pin.elastic.engine.insert_joints`); the eight closures are
-re-created on the new model. :func:`h4pin.elastic.engine.compliance` then gives K from Pinocchio's
+re-created on the new model. :func:`h4pin.elastic.engine.compliance_matrix` then gives K from Pinocchio's
 closure and frame Jacobians alone, with the four actuators locked: nothing of the paper's
 matrices or of :mod:`h4pin.stiffness` is used, only the spring data (read from
 :attr:`H4.geometry <h4pin.H4>` and :attr:`H4.elements <h4pin.H4>`).
@@ -125,16 +125,14 @@ class ElasticH4:
             d = self._local.data = self.model.createData()
         return d
 
-    @property
-    def mechanism(self) -> Any:
-        """This elastic model as an :class:`h4pin.elastic.Mechanism` (its tree, closures and the
-        four actuators), with the inertias :func:`h4pin.modes` uses (each forearm on its
-        actuator's spring): ``mechanism.compliance(q, self.stiffness, ["D"], locked=self.locked)``
-        and ``mechanism.modes(...)`` are this model's through the generic calls."""
-        from h4pin.elastic.mechanism import Mechanism
-        from h4pin.elastic.modes import mass_model
+    def compliance(self, pose: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
+        """Deprecated name of :meth:`compliance_matrix` (kept one release)."""
+        import warnings
 
-        return Mechanism(mass_model(self), self.constraint_models, self.locked, name="elastic H4")
+        warnings.warn("ElasticH4.compliance is now ElasticH4.compliance_matrix (it returns an array; "
+                      "h4pin.compliance returns a Compliance); the old name goes in the next release",
+                      DeprecationWarning, stacklevel=2)
+        return self.compliance_matrix(pose, data)
 
     @property
     def elastic_joints(self) -> tuple[str, ...]:
@@ -152,7 +150,7 @@ class ElasticH4:
         q[self.q_index] = kin.configuration(self.robot, pose)
         return q
 
-    def compliance(self, pose: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
+    def compliance_matrix(self, pose: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
         """K (8, 8) at a pose (4,): ``dtp = K Gamma_ext``, dtp = [dD, dOmega, domega_1, domega_2]
         (m, rad), Gamma_ext = [F at D, T, t1, t2] (N, N.m), world axes (as :func:`h4pin.compliance`).
 
@@ -165,9 +163,9 @@ class ElasticH4:
             UnreachablePoseError (and subclasses): the robot cannot take the pose.
             UnrestrainedMotionError: the pose is singular (a motion strains no spring).
         """
-        return engine.compliance(self.model, self.constraint_models, self.configuration(pose), locked=self.locked,
-                                 stiffness=self.stiffness, outputs=self.outputs,
-                                 data=self.data if data is None else data)
+        return engine.compliance_matrix(self.model, self.constraint_models, self.configuration(pose),
+                                        locked=self.locked, stiffness=self.stiffness, outputs=self.outputs,
+                                        data=self.data if data is None else data)
 
 
 def elastic_model(h4) -> ElasticH4:
@@ -177,7 +175,7 @@ def elastic_model(h4) -> ElasticH4:
         h4: the robot (:func:`h4pin.load`; ``load(..., elements=...)`` for other elements).
 
     Returns:
-        An :class:`ElasticH4`; ``elastic_model(h4).compliance(pose)`` equals
+        An :class:`ElasticH4`; ``elastic_model(h4).compliance_matrix(pose)`` equals
         ``h4pin.compliance(h4, pose, model="consistent").matrix``.
 
     Raises:

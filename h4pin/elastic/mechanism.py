@@ -16,7 +16,7 @@ the formats closed-loop robots are published in:
 Then :meth:`~Mechanism.assemble` closes the loops, :meth:`~Mechanism.compliance` gives the
 compliance of output frames under joint springs (the engine of :mod:`h4pin.elastic.engine`), and
 :meth:`~Mechanism.modes` the natural frequencies with the model's inertias
-(:mod:`h4pin.elastic.modes`' solver). The H4 is one such mechanism with many virtual springs
+(:mod:`h4pin.elastic.modal`'s solver). The H4 is one such mechanism with many virtual springs
 (:func:`h4pin.elastic.elastic_model`); ``docs/mechanisms.md`` walks through a five-bar linkage.
 """
 
@@ -36,7 +36,7 @@ import pinocchio as pin
 from h4pin._compat import constraint_calc
 from h4pin.elastic import engine
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
-from h4pin.elastic.modes import MASSLESS_TOL, _admissible, undamped_modes
+from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
 from h4pin.errors import MalformedURDFError, ParameterError
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
@@ -192,6 +192,19 @@ class Mechanism:
         return cls(model, cms, names, name=model.name or urdf_path.stem)
 
     @classmethod
+    def from_elastic(cls, em: Any) -> Mechanism:
+        """An elastic H4 (:func:`h4pin.elastic.elastic_model`) as a mechanism: its tree, closures
+        and four actuators, with the inertias :func:`h4pin.modes` uses (each forearm on its
+        actuator's spring): ``compliance(q, em.stiffness, ["D"], locked=em.locked)`` and
+        :meth:`modes` give the elastic model's numbers through the generic calls."""
+        from h4pin.elastic.h4 import ElasticH4
+        from h4pin.elastic.modal import mass_model
+
+        if not isinstance(em, ElasticH4):
+            raise ParameterError(f"em: an h4pin.elastic.ElasticH4 (h4pin.elastic_model(h4)), got {type(em).__name__}")
+        return cls(mass_model(em), em.constraint_models, em.locked, name="elastic H4")
+
+    @classmethod
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
         """An MJCF file: its tree, its ``connect``/``weld`` equalities as closures (Pinocchio 4's
         reader), the joints of its ``<actuator>`` elements as the motors (or ``actuated``).
@@ -312,14 +325,14 @@ class Mechanism:
         """The (6 n, 6 n) compliance of n output frames at an assembled q: force at each frame's
         origin and torque, world axes (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint:
         stiffness}`` (N.m/rad, N/m), joints without a spring free, ``locked`` held
-        (:func:`h4pin.elastic.engine.compliance`).
+        (:func:`h4pin.elastic.engine.compliance_matrix`).
 
         Raises:
             ParameterError: an unknown joint or frame, a bad stiffness or q.
             UnassembledError: a closure does not hold at q (its name and error).
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
         """
-        return engine.compliance(self.model, self.constraint_models, self._q(q),
+        return engine.compliance_matrix(self.model, self.constraint_models, self._q(q),
                                  locked=_names(self.model, locked, "locked"), stiffness=self._springs(springs),
                                  outputs=self._outputs(outputs), data=self.data)
 
@@ -328,12 +341,12 @@ class Mechanism:
         """Undamped natural modes at an assembled q with the model's inertias, the springs and
         the locked joints of :meth:`compliance`, and an optional ``payload``: ``(frame,
         h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in the frame's axes).
-        Massless directions are condensed statically (:func:`h4pin.elastic.modes.undamped_modes`).
+        Massless directions are condensed statically (:func:`h4pin.elastic.modal.undamped_modes`).
 
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
         """
-        from h4pin.elastic.modes import Payload
+        from h4pin.elastic.modal import Payload
 
         q = self._q(q)
         stiff = self._springs(springs)

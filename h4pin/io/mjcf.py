@@ -415,7 +415,7 @@ class _Plan:
 
 def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float, servo: bool = False) -> _Plan:
     """Where each virtual joint of the elastic model ``em`` goes in the MJCF tree of ``h4``."""
-    from h4pin.elastic.modes import mass_model
+    from h4pin.elastic.modal import mass_model
 
     rigid, m = h4.model, em.model
     zero = rigid.createData()

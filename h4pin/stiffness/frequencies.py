@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Natural frequencies of the elastic H4 at many poses, compiled: the twin of the Pinocchio route
-(:func:`h4pin.elastic.modes.modes`), under the same assumptions.
+(:func:`h4pin.elastic.modal.modes`), under the same assumptions.
 
 The elastic H4 of :func:`h4pin.elastic.elastic_model`: every compliance (eq. 30's four families and
 each element that is on) a spring, the actuators locked, the link inertias of the robot's URDF

@@ -4,7 +4,7 @@
 :func:`h4pin.studies.cycle.run` loads eq. 30's K with the plate's weight and d'Alembert load
 alone. Here the robot is the elastic model of :func:`h4pin.elastic.elastic_model` (every
 compliance a virtual joint with a spring, the actuators locked at the commanded motion, the
-URDF's inertias of :func:`h4pin.elastic.modes.mass_model` and a point payload at D), driven by
+URDF's inertias of :func:`h4pin.elastic.modal.mass_model` and a point payload at D), driven by
 the rigid motion of the cycle. Along it, at each sample:
 
 1. the rigid motion (q, v, a) of the closed loop (:func:`h4pin.studies.cycle.sample`), carried to
@@ -42,7 +42,7 @@ import pinocchio as pin
 
 from h4pin.elastic import engine
 from h4pin.elastic.h4 import elastic_model
-from h4pin.elastic.modes import _admissible, mass_model
+from h4pin.elastic.modal import _admissible, mass_model
 from h4pin.errors import ParameterError
 from h4pin.kinematics import closed_form as cf
 from h4pin.robot import H4

@@ -7,7 +7,7 @@ URDF (Pinocchio's ``model.inertias``) and an optional rigid :class:`Payload` fix
 bar. At the assembled configuration q of a rigid pose:
 
 1. the admissible small motions are ``dq = N z``, N a basis of the null space of the closure
-   Jacobian stacked on the locked rows (as :func:`h4pin.elastic.engine.compliance`; the same
+   Jacobian stacked on the locked rows (as :func:`h4pin.elastic.engine.compliance_matrix`; the same
    scaling, rank and singularity decisions);
 2. stiffness ``Kz = N^T Ke N`` (the springs, Ke diagonal); mass ``Mz = N^T M N``, with M the joint
    space inertia matrix of ``pin.crba`` plus the payload's ``J_D^T I_p J_D`` (I_p its 6x6 spatial
