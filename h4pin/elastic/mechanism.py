@@ -38,6 +38,7 @@ from h4pin.elastic import engine
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
 from h4pin.errors import MalformedURDFError, ParameterError
+from h4pin.kinematics.pinocchio import model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
 ASSEMBLY_TOL = 1e-10
@@ -235,13 +236,7 @@ class Mechanism:
 
     # ------------------------------------------------------------------ geometry
     def _q(self, q: Any, what: str = "q") -> np.ndarray:
-        try:
-            arr = np.array(q, dtype=float)
-        except (TypeError, ValueError):
-            raise ParameterError(f"{what}: {self.model.nq} numbers, got {q!r}") from None
-        if arr.shape != (self.model.nq,) or not np.all(np.isfinite(arr)):
-            raise ParameterError(f"{what}: a finite configuration of shape ({self.model.nq},), got shape {arr.shape}")
-        return arr
+        return model_configuration(self.model, q, what)
 
     def closure_errors(self, q: Any) -> dict[str, tuple[float, float]]:
         """``{closure: (translation error m, rotation error rad)}`` at q (rotation 0 for 3-D)."""

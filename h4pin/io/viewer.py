@@ -135,11 +135,7 @@ class Scene:
         self._server = None
         self.legend: list[str] = []
         try:
-            if vis is None:
-                self._server, zmq_url, _ = meshcat_server.start(host)
-                with contextlib.redirect_stdout(io.StringIO()):
-                    vis = meshcat.Visualizer(zmq_url=zmq_url)
-            self.vis = vis
+            vis = self._connect(vis, host)
             self.robot = MeshcatVisualizer(h4.model, h4.collision_model, h4.visual_model)
             self.robot.initViewer(viewer=vis)
             self.robot.loadViewerModel(rootNodeName="h4")
@@ -153,6 +149,15 @@ class Scene:
         except BaseException:
             self.close()
             raise
+
+    def _connect(self, vis: meshcat.Visualizer | None, host: str) -> meshcat.Visualizer:
+        """``vis``, or a new meshcat server of this scene's own (quietly) and its visualizer."""
+        if vis is None:
+            self._server, zmq_url, _ = meshcat_server.start(host)
+            with contextlib.redirect_stdout(io.StringIO()):
+                vis = meshcat.Visualizer(zmq_url=zmq_url)
+        self.vis = vis
+        return vis
 
     @property
     def url(self) -> str:
@@ -402,11 +407,7 @@ class MechanismScene(Scene):
         self._server = None
         self.legend = [f"{mechanism.name}: {model.njoints - 1} joints, {len(mechanism.constraint_models)} closures"]
         try:
-            if vis is None:
-                self._server, zmq_url, _ = meshcat_server.start(host)
-                with contextlib.redirect_stdout(io.StringIO()):
-                    vis = meshcat.Visualizer(zmq_url=zmq_url)
-            self.vis = vis
+            vis = self._connect(vis, host)
             vis["/Grid"].set_property("visible", False)
             points = np.array([d.oMi[j].translation for j in range(model.njoints)])
             size = max(float(np.ptp(points, axis=0).max()), 1e-3)

@@ -159,12 +159,18 @@ def frame_id(model: pin.Model, frame: str | int) -> int:
 
 def as_configuration(h4, q: Any) -> np.ndarray:
     """``q`` as a finite configuration (nq,) of the robot's model, or a :class:`ParameterError`."""
+    return model_configuration(h4.model, q)
+
+
+def model_configuration(model: pin.Model, q: Any, what: str = "q") -> np.ndarray:
+    """``q`` as a finite configuration (nq,) of ``model`` (a copy), or a :class:`ParameterError`
+    naming ``what``."""
     try:
-        qv = np.asarray(q, dtype=float)
+        qv = np.array(q, dtype=float)
     except (TypeError, ValueError):
-        raise ParameterError(f"q must be a configuration of {h4.model.nq} numbers, got {q!r}") from None
-    if qv.shape != (h4.model.nq,) or not np.all(np.isfinite(qv)):
-        raise ParameterError(f"q must be a finite configuration of shape ({h4.model.nq},), got shape {qv.shape}")
+        raise ParameterError(f"{what} must be a configuration of {model.nq} numbers, got {q!r}") from None
+    if qv.shape != (model.nq,) or not np.all(np.isfinite(qv)):
+        raise ParameterError(f"{what} must be a finite configuration of shape ({model.nq},), got shape {qv.shape}")
     return qv
 
 
