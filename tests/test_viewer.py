@@ -278,11 +278,20 @@ def test_cli_html_must_name_a_file_in_an_existing_folder(tmp_path, where):
     assert list(tmp_path.iterdir()) == []
 
 
+def _default_interrupts() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
+
+
 def start_view(*args: str) -> tuple[subprocess.Popen, int]:
     """``h4pin view`` serving a scene; returns the command and its meshcat server's pid."""
-    # faulthandler: a command that does not stop is sent SIGABRT and its stacks read (see _wait)
+    # faulthandler: a command that does not stop is sent SIGABRT and its stacks read (see _wait).
+    # SIGINT and SIGQUIT at their defaults, as a terminal starts a command: in a long session the
+    # child inherited them ignored now and then (measured: SigIgn 0x1001006, as while another
+    # thread sits in libc's system()), and an ignored SIGINT is the shell's choice, not a bug.
     proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "h4pin.cli", "view", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                            preexec_fn=_default_interrupts)
     deadline = time.monotonic() + 60
     line = ""
     while "meshcat: http" not in line and time.monotonic() < deadline and proc.poll() is None:
