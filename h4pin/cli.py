@@ -110,11 +110,14 @@ def fail(message: str) -> None:
 
 def load_robot(variant: str | None, urdf: Path | None):
     """The robot named by ``--variant`` or ``--urdf`` (not both)."""
+    from h4pin import limits
     from h4pin.robot import load
 
     if variant and urdf:
         fail("give --variant or --urdf, not both")
-    return load(urdf if urdf else (variant or "prototype"))
+    h4 = load(urdf if urdf else (variant or "prototype"))
+    limits.check_springs(h4, str(urdf) if urdf else "--variant")  # within h4pin.limits.SPRING_RANGES
+    return h4
 
 
 # What the options every command shares say (typer.Option is called in each signature).
@@ -228,15 +231,24 @@ def view(
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup's choice stands
             signal.signal(sig, _stop_on_signal)
+    from h4pin import limits
+
     check_finite("--pose", pose)
     check_finite("--load", load)
+    if load is not None:
+        limits.check_range("--load", load, "load")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
+    if scale is not None:
+        limits.check_range("--scale", scale, "scale")
     if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
         fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
+    if exaggeration is not None:
+        limits.check_range("--exaggeration", exaggeration, "exaggeration")
     if mode is not None and mode < 1:
         fail(f"--mode must be >= 1 (1: the first natural mode), got {mode}")
     check_payload(payload)
+    limits.check_range("--payload", payload, "payload")
     if payload > 0 and mode is None:
         fail("--payload goes with --mode (the payload of the animated mode)")
     from h4pin.files import check_output, check_replace
@@ -394,8 +406,9 @@ def atlas(
         for q in maps:
             check_replace(figures / f"atlas_{q}.png", "--figures", overwrite)
     n_z = z_range[2] if z_range else max(len(z or []), 1)
-    if out.suffix != ".zarr":  # a .zarr atlas streams to disk: its memory does not grow with the grid
-        atlas_module.check_memory(x[2] * y[2] * n_z * max(len(theta or []), 1))
+    # a .zarr atlas streams to disk: its memory grows with its blocks, not with its poses
+    atlas_module.check_memory((max(len(theta or []), 1), n_z, y[2], x[2]), frequency=frequency,
+                              streamed=out.suffix == ".zarr")
     h4 = load_robot(variant, urdf)
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
@@ -485,14 +498,18 @@ def cycle(
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
 ) -> None:
     """Tool deflection along the standard pick-and-place cycle (closed-loop inverse dynamics, quasi-static)."""
+    from h4pin import limits
     from h4pin.files import check_output, check_replace
     from h4pin.studies import cycle as cycle_module
 
     if not (math.isfinite(time) and time > 0):
         fail(f"--time must be a finite number > 0 (s), got {time:g}")
+    limits.check_range("--time", time, "cycle_time")
     check_payload(payload)
+    limits.check_range("--payload", payload, "payload")
     if samples < 8:
         fail(f"--samples must be >= 8, got {samples}")
+    limits.check_cycle_samples(samples, len(payload))
     check_finite("--heading", (heading,))
     if figure is not None:
         check_output(figure, "--figure", suffixes=(".png",))
@@ -520,15 +537,21 @@ def modes(
     map_png: Path | None = typer.Option(None, "--map", hidden=True, help="old name of --figure"),
 ) -> None:
     """Natural frequencies of the elastic robot (actuators locked, link inertias from the URDF)."""
+    from h4pin import limits
+
     figure, figure_name = renamed(figure, map_png, "--map")
     check_finite("--pose", pose)
     check_payload(payload)
+    limits.check_range("--payload", payload, "payload")
     if count < 1:
         fail(f"--count must be >= 1, got {count}")
     if figure is not None:
         if grid < 2 or not (math.isfinite(span) and span > 0):
             fail(f"--grid must be >= 2 and --span a length > 0 (m), got {grid} and {span:g}")
         from h4pin.files import check_output, check_replace
+        from h4pin.studies.frequency import check_size
+
+        check_size(grid * grid, f"modes --grid {grid}")
 
         check_output(figure, figure_name, suffixes=(".png",))
         check_replace(figure, figure_name, overwrite)

@@ -3,8 +3,9 @@
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
 first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline's one-pose and
-batch entries, the natural frequencies and the atlas and sweep reductions. After it, every call
-starts compiled.
+batch entries, the natural frequencies, the atlas and sweep reductions, and a tiny atlas and
+sweep run as their commands run them (every signature the commands compile: a test lists them).
+After it, every call starts compiled.
 h4pin starts this module by itself in the background the first time a call needs code that is
 not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
 ``pip install`` in a Dockerfile.
@@ -40,7 +41,8 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
             ("compiled pipeline, one pose", lambda: compliance(state["h4"], pose(), method="kernel")),
             ("compiled pipeline, batch", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
             ("natural frequencies", lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled")),
-            ("atlas and sweep fields", _study_fields)]
+            ("atlas and sweep fields", _study_fields),
+            ("atlas and sweep, as their commands run", lambda: _studies(state["h4"]))]
 
 
 def _study_fields() -> None:
@@ -50,6 +52,27 @@ def _study_fields() -> None:
     K, J, status = np.tile(np.eye(8), (2, 1, 1)), np.tile(np.eye(4), (2, 1, 1)), np.zeros(2, dtype=np.int8)
     _derived.atlas_fields(K, J, status, *(np.empty(2) for _ in range(4)))
     _derived.design_reduce(K, status, 1)
+
+
+def _studies(h4) -> None:
+    """A one-pose atlas and a one-design sweep, natural frequencies included, through the code
+    their commands run: every signature they compile is compiled here too. Numba compiles one
+    version per signature, and a signature includes each array's layout and read-only flag:
+    the sweep's designs pass their mass model read-only (``pack_masses_params``) where a loaded
+    robot passes its configuration constants writable, so the sweep needs a version of the
+    natural frequencies of its own (``tests/test_warmup_coverage.py`` checks that the commands
+    compile nothing after this warm-up)."""
+    from h4pin.extras import MissingExtraError
+    from h4pin.kinematics import closed_form as cf
+
+    try:
+        from h4pin.studies import atlas, sweep
+    except MissingExtraError:  # without the 'studies' extra no command runs them
+        return
+    c = cf.centre_pose(h4)
+    atlas.atlas(h4, [c[0]], [c[1]], [c[2]], [c[3]], frequency=True, progress=False)
+    spec = sweep.Spec(n_designs=1, chunk=1, frequency=True)
+    sweep.evaluate(sweep.designs(spec), spec)
 
 
 def compile_all(progress: Callable[[str, float], None] | None = None) -> float:

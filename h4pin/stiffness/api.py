@@ -330,8 +330,23 @@ def _terms_of(h4, x: np.ndarray, model: str, method: str, active: Elements | Non
     return _compliance(h4, x, model, "nan", method, True, active).terms
 
 
+def _check_size(pose: Any, keep: bool, active: Elements | None) -> None:
+    """Refuse, before any copy, a batch whose results do not fit in memory (:mod:`h4pin.limits`:
+    ``H4PIN_MEMORY_LIMIT``): e.g. a broadcast view of 1e9 poses takes no memory, its results 700 GB."""
+    shape = getattr(pose, "shape", None)
+    if not isinstance(shape, tuple) or len(shape) != 2 or shape[0] < 100_000:
+        return
+    from h4pin import limits
+
+    n = int(shape[0])
+    per = limits.COMPLIANCE_BYTES_PER_POSE + (limits.COMPLIANCE_BYTES_PER_TERM * len(_names(active)) if keep else 0)
+    limits.check_size(f"h4pin.compliance: {n:,} poses", n * per, n / limits.COMPLIANCE_POSES_PER_S,
+                      "give fewer poses a call, or stream them (h4pin.stiffness.kernel.iter_compliance)")
+
+
 def _compliance(h4, pose: Any, model: str, on_error: str, method: str, keep: bool,
                 active: Elements | None) -> Compliance:
+    _check_size(pose, keep, active)
     pose = real_array(pose, "pose")  # no bools, text, None, complex or masked arrays (PoseError)
     raw = pose.copy() if on_error == "nan" else None
     if raw is not None and raw.ndim in (1, 2) and raw.shape[-1] == 4:

@@ -24,6 +24,7 @@ See ``docs/atlas.md``.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shutil
 import tempfile
@@ -38,7 +39,7 @@ from h4pin.extras import require
 require("xarray", extra="studies", what="the atlas (h4pin.studies.atlas)")
 import xarray as xr  # noqa: E402
 
-from h4pin import verdicts  # noqa: E402
+from h4pin import limits, verdicts  # noqa: E402
 from h4pin.description.geometry import geometry_from_params  # noqa: E402
 from h4pin.description.params import H4Params  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
@@ -188,6 +189,7 @@ def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: A
     results = (_kernel_chunks(kern, poses(), model, chunk, masses) if isinstance(kern, kernel.Kernel)
                else ((s, r, None) for s, r in _robot_chunks(kern, poses(), model)))
     buf = {q: np.empty(0) for q in ("compliance_max", "isotropy", "stiffness_z", "cond_J")}
+    n_ok = n_bad = 0
     for _, res, first in results:
         b, region, _ = blocks.pop(0)
         m = len(res.status)
@@ -200,8 +202,15 @@ def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: A
         f["status"] = res.status
         if first is not None:
             f["first_frequency"] = first
+        ok = res.status == verdicts.OK
+        n_ok += int(ok.sum())
+        n_bad += int(np.sum(ok & ~np.isfinite(f["compliance_max"])))
+        if first is not None:
+            n_bad += int(np.sum(ok & ~(np.isfinite(first) & (first > 0))))
         write(b, region, f)
         bar.update(m)
+    limits.warn_non_finite("atlas, at the poses the robot takes", n_bad, n_ok,
+                           "check the robot's springs (h4pin.limits.SPRING_RANGES)")
 
 
 def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
@@ -233,12 +242,13 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
         return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress, frequency=frequency)
     if out is not None:
         check_out(out)
+    limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
     block, grid = _layout(shape, chunk)
-    check_memory(int(np.prod(shape)))
+    check_memory(shape, frequency=frequency, chunk=chunk)
     data = {q: np.full(shape, np.nan) for q in _quantities(frequency)}
     data["status"] = np.empty(shape, dtype=np.int8)
 
@@ -387,12 +397,14 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     path = check_out(out, "out")
     if path.suffix != ".zarr":
         raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
+    limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
     kernel._model_code(model)
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
     block, grid = _layout(shape, chunk)
+    check_memory(shape, frequency=frequency, streamed=True, chunk=chunk)
     n_blocks = int(np.prod(grid))
     lazy = {q: da.full(shape, np.nan, chunks=block) for q in _quantities(frequency)}
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
@@ -443,21 +455,44 @@ def _poses_in(todo: np.ndarray, axes: dict[str, np.ndarray], block: tuple[int, .
 
 
 #: Bytes an atlas holds per pose: five float64 quantities and the int8 verdict, twice (the arrays
-#: and the copy a file engine may make while writing).
+#: and the copy a file engine may make while writing); with ``frequency``, :data:`FREQUENCY_BYTES` more.
 BYTES_PER_POSE = 2 * (5 * 8 + 1)
+FREQUENCY_BYTES = 2 * 8
+#: Bytes of one block of poses in flight (the kernel's buffers, ~1.2 kB a pose; with the natural
+#: frequencies' intermediates ~4 kB) and per block of a streamed atlas (the lazy template of its
+#: seven arrays and its zarr metadata: measured 25.5 kB and 3.3 ms a block over 20,000 blocks).
+BLOCK_BYTES_PER_POSE = 4200
+BYTES_PER_BLOCK, SECONDS_PER_BLOCK = 26_000, 3.5e-3
+#: Poses a second (measured: 9.5e5/s over a 200 x 200 slice on 2 cores, 2.9e4/s with the first
+#: natural frequency; rounded down).
+POSES_PER_S, FREQUENCY_POSES_PER_S = 5e5, 2.5e4
 
 
-def check_memory(n: int) -> None:
-    """Refuse, before any work, a grid whose results do not fit in the memory this machine has
-    available (:data:`BYTES_PER_POSE`)."""
-    need = n * BYTES_PER_POSE
-    try:
-        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):  # not Linux: no check
-        return
-    if need > avail:
-        raise ParameterError(f"a grid of {n:,} poses needs about {need / 2**30:.1f} GiB, this machine has "
-                             f"{avail / 2**30:.1f} GiB available: use fewer points or several slices")
+def check_memory(n: int | tuple[int, ...], *, frequency: bool = False, streamed: bool = False,
+                 chunk: int = kernel.CHUNK) -> None:
+    """Refuse, before any work, a grid whose atlas does not fit in memory: ``n`` poses, or the
+    grid's shape (theta, z, y, x). In memory (a ``.nc`` atlas), :data:`BYTES_PER_POSE` a pose; a
+    streamed ``.zarr`` atlas holds one block, and :data:`BYTES_PER_BLOCK` a block of the grid.
+    The limit is :func:`h4pin.limits.memory_limit` (``H4PIN_MEMORY_LIMIT``); the message also
+    gives the time the atlas would take.
+
+    Raises:
+        h4pin.limits.TooLargeError: over the limit (a :class:`h4pin.ParameterError`).
+    """
+    shape = n if isinstance(n, tuple) else None
+    n = limits.count(math.prod(n) if shape is not None else n)
+    in_flight = min(n, max(1, int(chunk))) * BLOCK_BYTES_PER_POSE
+    if streamed:
+        blocks = -(-n // max(1, int(chunk)))
+        if shape is not None and len(shape) == 4 and min(shape) > 0:
+            blocks = math.prod(_layout(tuple(int(v) for v in shape), chunk)[1])
+        need = blocks * BYTES_PER_BLOCK + in_flight
+    else:
+        blocks = 0
+        need = n * (BYTES_PER_POSE + (FREQUENCY_BYTES if frequency else 0)) + in_flight
+    seconds = n / (FREQUENCY_POSES_PER_S if frequency else POSES_PER_S) + blocks * SECONDS_PER_BLOCK
+    limits.check_size(f"atlas: a grid of {n:,} poses", need, seconds,
+                      "use fewer points or several slices" + ("" if streamed else ", or a .zarr output (streamed)"))
 
 
 def check_out(path: str | Path, what: str = "path") -> Path:

@@ -50,6 +50,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.errors import ParameterError, PoseError
 from h4pin.files import save_figure
 from h4pin.kinematics import closed_form as cf
@@ -511,8 +512,11 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     """
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
         raise ParameterError(f"samples must be an integer >= 8, got {samples!r}")
-    payload = _positive("payload", payload, zero=True, unit=" (kg)")
+    limits.check_cycle_samples(int(samples))
+    limits.check_range("period", _positive("period", period, unit=" (s)"), "cycle_time")
+    payload = limits.check_range("payload", _positive("payload", payload, zero=True, unit=" (kg)"), "payload")
     damping = _positive("damping", damping, zero=True)
+    limits.check_springs(h4, "h4")
     at = np.zeros(3) if payload_at is None else np.asarray(payload_at, dtype=float)
     cycle = adept_cycle(h4, period, check=0, **cycle_options)
     t = cycle.times(int(samples))

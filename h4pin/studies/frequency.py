@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from h4pin import verdicts
+from h4pin import limits, verdicts
 from h4pin.elastic import Payload
 from h4pin.errors import H4Error, ParameterError
 from h4pin.files import save_figure
@@ -43,10 +43,36 @@ def first_frequency(robot: Any, poses: np.ndarray, payload: Payload | None = Non
     Returns:
         (frequency (N,) Hz, NaN where status is not 0; status (N,) int8, :mod:`h4pin.verdicts`).
     """
+    _check_inputs(robot, payload)
     x = as_poses(poses)
     x = x[None] if x.ndim == 1 else x
+    check_size(len(x))
     out = modes(robot, x, payload)
-    return out.first.copy(), out.status.astype(np.int8)
+    first, status = out.first.copy(), out.status.astype(np.int8)
+    ok = status == verdicts.OK
+    limits.warn_non_finite("first natural frequency at the poses the robot takes",
+                           int(np.sum(ok & ~(np.isfinite(first) & (first > 0)))), int(ok.sum()),
+                           "a frequency of 0 Hz or none: check the robot's springs and masses")
+    return first, status
+
+
+def check_size(n: int, what: str = "first natural frequency") -> None:
+    """Refuse, before any work, ``n`` poses whose natural frequencies do not fit in memory
+    (:data:`h4pin.limits.MODES_BYTES_PER_POSE`; limit ``H4PIN_MEMORY_LIMIT``).
+
+    Raises:
+        h4pin.limits.TooLargeError: over the limit (a :class:`h4pin.ParameterError`).
+    """
+    n = limits.count(n)
+    limits.check_size(f"{what}: {n:,} poses", n * limits.MODES_BYTES_PER_POSE, n / limits.MODES_POSES_PER_S,
+                      "use fewer poses (a coarser grid)")
+
+
+def _check_inputs(robot: Any, payload: Any) -> None:
+    """The payload's mass and the robot's springs within their plausible ranges (:mod:`h4pin.limits`)."""
+    if isinstance(payload, Payload):
+        limits.check_range("payload", payload.mass, "payload")
+    limits.check_springs(robot, "robot")
 
 
 def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float = 0.0,
@@ -61,6 +87,7 @@ def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float 
     xs, ys = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (x, y))
     if xs.ndim != 1 or ys.ndim != 1 or not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
         raise ParameterError("x and y must be 1-D arrays of finite values (m)")
+    check_size(len(xs) * len(ys), "frequency map")
     zc = float(centre_pose(h4)[2]) if z is None else float(z)
     gy, gx = np.meshgrid(ys, xs, indexing="ij")
     poses = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, zc), np.full(gx.size, float(theta))], axis=1)
@@ -200,5 +227,5 @@ def plot_frequency_pareto(par: dict[str, np.ndarray], path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-__all__ = ["design_frequencies", "first_frequency", "frequency_map", "frequency_pareto", "pareto_indices",
+__all__ = ["check_size", "design_frequencies", "first_frequency", "frequency_map", "frequency_pareto", "pareto_indices",
            "plot_frequency_pareto", "plot_map"]

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from h4pin import limits
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
@@ -131,6 +132,7 @@ class Spec:
         if set(self.bounds) != set(VARIABLES):
             raise ParameterError(f"bounds must give {tuple(VARIABLES)}, got {tuple(self.bounds)}")
         object.__setattr__(self, "bounds", {k: tuple(float(v) for v in self.bounds[k]) for k in VARIABLES})
+        limits.check_springs({"kc": self.bounds["kc"]}, "bounds")
         kernel._model_code(self.model)
         self.element_set()  # checked now: a bad name or value is refused before any work
 
@@ -149,10 +151,35 @@ class Spec:
         return None if el.off else el
 
 
+#: Bytes a sweep holds per design: the Sobol points (up to twice n_designs, 6 float64) and the
+#: table (measured 146 bytes a design over 1e6 designs), the table read back by :func:`run` (48)
+#: and the results :func:`load` returns (~80): rounded up.
+BYTES_PER_DESIGN = 300
+#: Designs a second on 2 cores (measured 670/s with the default task box and volume grid, 210/s
+#: with the first frequency; rounded down).
+DESIGNS_PER_S, FREQUENCY_DESIGNS_PER_S = 500.0, 150.0
+
+
+def check_size(spec: Spec) -> None:
+    """Refuse, before any work, a sweep whose design table and results do not fit in memory
+    (:data:`BYTES_PER_DESIGN`; limit :func:`h4pin.limits.memory_limit`, ``H4PIN_MEMORY_LIMIT``);
+    the message also gives the time it would take (:data:`DESIGNS_PER_S`).
+
+    Raises:
+        h4pin.limits.TooLargeError: over the limit (a :class:`h4pin.ParameterError`).
+    """
+    n = limits.count(spec.n_designs)
+    need = n * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) * 700
+    rate = FREQUENCY_DESIGNS_PER_S if spec.frequency else DESIGNS_PER_S
+    limits.check_size(f"sweep: {n:,} designs", need, n / rate, "use fewer designs (--designs)")
+
+
 def designs(spec: Spec) -> np.ndarray:
     """The design table (n_designs, 6), columns :data:`VARIABLES`: the first n_designs points of
     a scrambled Sobol sequence (seeded, 2^m points drawn) over the bounds."""
     from scipy.stats import qmc
+
+    check_size(spec)
 
     m = max(0, int(np.ceil(np.log2(spec.n_designs))))
     unit = qmc.Sobol(len(VARIABLES), scramble=True, seed=spec.seed).random_base2(m)[:spec.n_designs]
@@ -331,17 +358,65 @@ def check_store(path: str | Path, what: str = "path") -> Path:
 
 
 def check_scheduler(address: str, timeout: float = 5.0) -> None:
-    """Refuse, within ``timeout`` s, a Dask scheduler address that does not answer."""
+    """Refuse, within about ``timeout`` s, an address at which no Dask scheduler answers: nothing
+    listens there (refused, or no answer to the connection), or something else does (an HTTP
+    server, an SSH daemon, ...), which ``distributed.Client`` would wait on without a word or
+    read as a message of exabytes.
+
+    A Dask scheduler speaks first: on a new TCP connection it sends its handshake, one message
+    framed as ``distributed.comm.tcp`` frames every message (an 8-byte little-endian length, then
+    that many bytes: an 8-byte frame count, the frames' 8-byte lengths and the frames, msgpack
+    of a dict that names the ``pickle-protocol``). This reads that message (at most 64 KiB) and
+    closes the connection. Addresses of other schemes (``tls://``, ``ws://``, ...) are only
+    connected to (their handshake is the protocol's own).
+    """
     import socket
+    import struct
     from urllib.parse import urlparse
 
     url = urlparse(address if "://" in address else f"tcp://{address}")
+    deadline = time.monotonic() + timeout
+
+    def refuse(why: str) -> ParameterError:
+        return ParameterError(f"scheduler: cannot reach a Dask scheduler at {address} ({why})")
+
+    def recv(sock: socket.socket, n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise refuse(f"something listens there but sent no Dask handshake within {timeout:g} s"
+                             if not data else "its answer stopped half-way")
+            sock.settimeout(left)
+            try:
+                part = sock.recv(n - len(data))
+            except TimeoutError:
+                continue
+            if not part:
+                raise refuse("the server there closed the connection: it is not a Dask scheduler")
+            data += part
+        return data
+
     try:
         port = url.port or 8786
-        with socket.create_connection((url.hostname or "", port), timeout=timeout):
-            pass
+        host = url.hostname or ""
+        sock = socket.create_connection((host, port), timeout=timeout)
     except (OSError, ValueError) as exc:
-        raise ParameterError(f"scheduler: cannot reach a Dask scheduler at {address} ({exc})") from None
+        raise refuse(str(exc)) from None
+    with sock:
+        if url.scheme not in ("tcp", ""):
+            return
+        try:
+            (size,) = struct.unpack("<Q", recv(sock, 8))
+            if not 16 <= size <= 65536:
+                raise refuse(f"the server there does not answer as a Dask scheduler does: it announced a message of "
+                             f"{size:,} bytes")
+            body = recv(sock, size)
+        except OSError as exc:
+            raise refuse(str(exc)) from None
+        (n_frames,) = struct.unpack_from("<Q", body)
+        if not 1 <= n_frames <= 64 or b"pickle-protocol" not in body:
+            raise refuse("the server there does not answer as a Dask scheduler does (no Dask handshake)")
 
 
 def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: str | None = None,
@@ -363,6 +438,7 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
         raise ParameterError(f"workers must be an integer >= 1 (Dask workers), got {workers!r}")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")
+    check_size(spec)
     require("zarr", extra="studies", what="the design sweep (h4pin.studies.sweep)")
     if workers is not None or scheduler is not None:
         require("distributed", extra="studies", what="a sweep on Dask")

@@ -1,0 +1,269 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Impossible sizes, unreachable schedulers and absurd values are refused at once (project issue
+30, h4pin.limits): a typed error (the CLI: exit 2 and one line ``error: ...``, no traceback)
+naming the size or the value and the limit or the range, in seconds, before any large
+allocation and without writing anything."""
+
+from __future__ import annotations
+
+import http.server
+import socket
+import sys
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import h4pin
+from h4pin import cli, limits
+from h4pin.errors import ParameterError
+
+
+def run_cli(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
+    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err
+
+
+def assert_refused(argv: list[str], words: list[str], monkeypatch, capsys, seconds: float = 15.0) -> str:
+    started = time.monotonic()
+    code, _, err = run_cli(argv, monkeypatch, capsys)
+    lines = [line for line in err.splitlines() if not line.startswith("h4pin: first run")]
+    assert code == 2, (argv, err)
+    assert len(lines) == 1 and lines[0].startswith("error: "), (argv, err)
+    assert "Traceback" not in err
+    for w in words:
+        assert w in lines[0], (argv, w, lines[0])
+    assert time.monotonic() - started < seconds, argv
+    return lines[0]
+
+
+# --- sizes ------------------------------------------------------------------------------------
+
+
+def test_compliance_of_a_billion_pose_view_is_refused_before_any_copy(proto, centre):
+    view = np.broadcast_to(centre, (10**9, 4))
+    started = time.monotonic()
+    with pytest.raises(limits.TooLargeError) as info:
+        h4pin.compliance(proto, view)
+    assert time.monotonic() - started < 2.0
+    message = str(info.value)
+    assert isinstance(info.value, h4pin.ParameterError)
+    assert "1,000,000,000 poses" in message and "GiB" in message and limits.MEMORY_ENV in message
+    assert "\n" not in message
+
+
+def test_the_memory_limit_is_the_users_to_raise(proto, centre, monkeypatch):
+    view = np.broadcast_to(centre, (200_000, 4))
+    monkeypatch.setenv(limits.MEMORY_ENV, "1MiB")
+    with pytest.raises(limits.TooLargeError, match=r"over the limit of 1\.0 MiB \(H4PIN_MEMORY_LIMIT=1MiB"):
+        h4pin.compliance(proto, view)
+    monkeypatch.setenv(limits.MEMORY_ENV, "1TiB")
+    assert h4pin.compliance(proto, view).matrix.shape == (200_000, 8, 8)
+
+
+@pytest.mark.parametrize(("text", "value"), [("123", 123), ("8GiB", 8 * 2**30), ("8 G", 8e9), ("1.5e9", 1.5e9),
+                                             ("512MiB", 2**29), ("0", None), ("none", None)])
+def test_memory_limit_parses_bytes_and_units(monkeypatch, text, value):
+    monkeypatch.setenv(limits.MEMORY_ENV, text)
+    assert limits.memory_limit()[0] == value
+
+
+@pytest.mark.parametrize("text", ["lots", "-5", "8 parsecs", "nan"])
+def test_a_bad_memory_limit_is_named(monkeypatch, text):
+    monkeypatch.setenv(limits.MEMORY_ENV, text)
+    with pytest.raises(ParameterError, match=limits.MEMORY_ENV):
+        limits.check_size("x", 1.0)
+
+
+def test_the_default_limit_is_a_share_of_the_available_memory(monkeypatch):
+    monkeypatch.delenv(limits.MEMORY_ENV, raising=False)
+    avail = limits.available_memory()
+    if avail is None:
+        pytest.skip("this system does not say how much memory is available")
+    limit, source = limits.memory_limit()
+    assert limit == pytest.approx(limits.MEMORY_FRACTION * avail, rel=0.2)  # memory moves meanwhile
+    assert "available" in source
+
+
+def test_a_time_limit_refuses_a_long_job(monkeypatch):
+    from h4pin.studies import sweep
+
+    spec = sweep.Spec(n_designs=1_000_000)
+    sweep.check_size(spec)  # fits in memory, no time limit by default
+    monkeypatch.setenv(limits.TIME_ENV, "10min")
+    with pytest.raises(limits.TooLargeError, match="over the time limit of 10 min"):
+        sweep.check_size(spec)
+
+
+def size_cases(tmp: Path) -> list[tuple[list[str], list[str]]]:
+    return [
+        (["tolerance", "--robots", "100000000"], ["100,000,000 robots", "GiB", "H4PIN_MEMORY_LIMIT"]),
+        (["cycle", "--samples", "100000000"], ["100,000,000 samples", "TiB", "H4PIN_MEMORY_LIMIT"]),
+        (["modes", "--figure", str(tmp / "m.png"), "--grid", "100000"], ["10,000,000,000 poses", "H4PIN_MEMORY_LIMIT"]),
+        (["sweep", "--designs", "1000000000000", "--out", str(tmp / "s.zarr")],
+         ["1,000,000,000,000 designs", "H4PIN_MEMORY_LIMIT", "years"]),
+        (["atlas", "--x", "-1", "1", "100000", "--y", "-1", "1", "100000", "--z-range", "-1", "0", "1000", "--out",
+          str(tmp / "a.zarr")], ["10,000,000,000,000 poses", "H4PIN_MEMORY_LIMIT"]),
+    ]
+
+
+def test_cli_refuses_impossible_sizes_in_one_line(tmp_path, monkeypatch, capsys):
+    for argv, words in size_cases(tmp_path):
+        assert_refused(argv, words, monkeypatch, capsys)
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_the_studies_refuse_sizes_before_they_allocate(proto):
+    from h4pin.studies import atlas, cycle, frequency, sweep, tolerance
+
+    for call in (lambda: tolerance.study(proto, n_robots=10**8),
+                 lambda: cycle.run(proto, 0.5, samples=10**8),
+                 lambda: frequency.frequency_map(proto, np.zeros(10**5), np.zeros(10**5)),
+                 lambda: sweep.designs(sweep.Spec(n_designs=10**12)),
+                 lambda: atlas.atlas(proto, np.zeros(10**5), np.zeros(10**5), np.zeros(10**3), progress=False)):
+        started = time.monotonic()
+        with pytest.raises(limits.TooLargeError):
+            call()
+        assert time.monotonic() - started < 5.0
+
+
+# --- schedulers -------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def http_server():
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(5)
+
+
+@pytest.fixture
+def closed_port() -> str:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    return f"127.0.0.1:{port}"
+
+
+@pytest.mark.parametrize("which", ["http_server", "closed_port"])
+def test_a_scheduler_that_is_not_dask_is_refused_in_seconds(which, request, tmp_path, monkeypatch, capsys):
+    address = request.getfixturevalue(which)
+    # an HTTP server takes the handshake's timeout (5 s) to be refused: one form of its address
+    for shown in ([f"tcp://{address}"] if which == "http_server" else [address, f"tcp://{address}"]):
+        line = assert_refused(["sweep", "--designs", "4", "--out", str(tmp_path / "s.zarr"), "--scheduler", shown],
+                              ["cannot reach a Dask scheduler", shown], monkeypatch, capsys, seconds=10.0)
+        assert ("no Dask handshake" in line) == (which == "http_server")
+    assert not (tmp_path / "s.zarr").exists()
+
+
+def test_a_dask_scheduler_passes_the_check():
+    pytest.importorskip("distributed")
+    from distributed import LocalCluster
+
+    from h4pin.studies.sweep import check_scheduler
+
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp://", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        started = time.monotonic()
+        check_scheduler(cluster.scheduler_address)
+        check_scheduler(cluster.scheduler_address.removeprefix("tcp://"))
+        assert time.monotonic() - started < 2.0
+
+
+# --- values -----------------------------------------------------------------------------------
+
+
+def value_cases(tmp: Path) -> list[tuple[list[str], list[str]]]:
+    return [
+        (["view", "--load", "1e300", "0", "0", "--out", str(tmp / "v.html")], ["--load = 1e+300 N", "1e+06"]),
+        (["view", "--exaggeration", "1e300", "--out", str(tmp / "v.html")], ["--exaggeration = 1e+300", "1e+06"]),
+        (["view", "--mode", "1", "--payload", "1e12", "--out", str(tmp / "v.html")], ["--payload = 1e+12 kg", "1000"]),
+        (["modes", "--payload", "1e12"], ["--payload = 1e+12 kg", "[0, 1000] kg"]),
+        (["cycle", "--payload", "1e12"], ["--payload = 1e+12 kg", "[0, 1000] kg"]),
+        (["cycle", "--time", "1e-9"], ["--time = 1e-09 s", "[0.001, 1e+06] s"]),
+    ]
+
+
+def test_cli_refuses_absurd_values_in_one_line(tmp_path, monkeypatch, capsys):
+    for argv, words in value_cases(tmp_path):
+        assert_refused(argv, words, monkeypatch, capsys)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_values_inside_the_ranges_pass():
+    for kind, (lo, hi, _, _) in limits.RANGES.items():
+        for v in (lo, hi, 0.5 * (lo + hi)):
+            assert limits.check_range(kind, v, kind) == v
+        for v in (hi * 10 if hi > 0 else 1.0, float("inf"), float("nan")):
+            with pytest.raises(limits.ImplausibleValueError, match=kind):
+                limits.check_range(kind, v, kind)
+
+
+def test_cycle_refuses_an_absurd_period_and_payload(proto):
+    from h4pin.studies import cycle
+
+    with pytest.raises(limits.ImplausibleValueError, match=r"period = 1e-09 s .*\[0\.001, 1e\+06\] s"):
+        cycle.run(proto, 1e-9)
+    with pytest.raises(limits.ImplausibleValueError, match=r"payload = 1e\+12 kg"):
+        cycle.run(proto, 0.5, 1e12)
+
+
+def test_a_spring_of_1e_300_is_refused_by_the_studies(centre):
+    from h4pin.studies import atlas, cycle, frequency, tolerance
+
+    soft = h4pin.load("prototype", springs={"kc": 1e-300})
+    with pytest.raises(limits.ImplausibleValueError, match=r"'kc' = 1e-300 N.m/rad .*\[1e-06, 1e\+15\]"):
+        limits.check_springs(soft)
+    for call in (lambda: cycle.run(soft, 0.5, samples=16), lambda: tolerance.study(soft, n_robots=2),
+                 lambda: frequency.first_frequency(soft, centre),
+                 lambda: atlas.atlas(soft, [0.0], [0.0], [centre[2]], progress=False)):
+        with pytest.raises(limits.ImplausibleValueError, match="kc"):
+            call()
+    limits.check_springs(h4pin.load("prototype"))  # the shipped robots are within the ranges
+    limits.check_springs(h4pin.H4Params())
+
+
+def test_a_urdf_with_a_1e_300_spring_is_refused_by_the_cli(proto, tmp_path, monkeypatch, capsys):
+    assert proto.urdf.count('kc="7400.0"') == 4
+    path = tmp_path / "soft.urdf"
+    path.write_text(proto.urdf.replace('kc="7400.0"', 'kc="1e-300"', 1))
+    assert_refused(["modes", "--urdf", str(path)], ["'kc' = 1e-300", str(path)], monkeypatch, capsys)
+    assert_refused(["table2", "--urdf", str(path)], ["'kc' = 1e-300"], monkeypatch, capsys)
+
+
+def test_a_sweep_refuses_actuator_stiffness_bounds_out_of_range():
+    from h4pin.studies import sweep
+
+    bounds = dict(sweep.BOUNDS, kc=(1e-300, 1e4))
+    with pytest.raises(limits.ImplausibleValueError, match="kc"):
+        sweep.Spec(bounds=bounds)
+
+
+def test_a_zero_frequency_is_a_named_warning(proto, centre, monkeypatch):
+    from h4pin.studies import frequency
+
+    class Zero:
+        first = np.zeros(2)
+        status = np.zeros(2, dtype=np.int8)
+
+    monkeypatch.setattr(frequency, "modes", lambda *a, **k: Zero())
+    with pytest.warns(limits.NonFiniteResultWarning, match="2 of 2 results are not finite"):
+        frequency.first_frequency(proto, np.tile(centre, (2, 1)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        monkeypatch.undo()
+        f, status = frequency.first_frequency(proto, np.tile(centre, (2, 1)))
+        assert np.all(np.isfinite(f) & (f > 0))
