@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import h4pin
+from h4pin.files import save_figure
 from h4pin.studies import elastic_cycle as ec
 
 PERIODS = (0.3, 0.4, 0.5, 0.6, 0.75, 1.0, 1.5, 2.0, 3.0)
@@ -80,9 +81,7 @@ def main() -> None:
     fig.suptitle(f"H4 prototype, standard 25/305/25 mm cycle, elastic robot, damping {args.damping:g} s "
                  f"({math.pi * 32.7 * args.damping:.1%} at 32.7 Hz)", fontsize=10)
     args.figure.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.figure.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=90)
-    tmp.replace(args.figure)
+    save_figure(fig, args.figure, dpi=90)  # atomic, with h4pin's marker
     print(f"wrote {args.figure}")
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import h4pin
+from h4pin.files import save_figure
 from h4pin.kinematics.closed_form import centre_pose
 
 ENTRIES = {"xx": (0, 0), "yy": (1, 1), "zz": (2, 2), "xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
@@ -100,9 +101,7 @@ def main() -> None:
             fig.colorbar(im, ax=axes[row, :], label="increase (%), log scale", shrink=0.9)
         fig.suptitle("Forearms bending out of plane (EI = 1 120 N.m²) vs the paper's rigid forearms", fontsize=10)
         args.figure.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.figure.with_suffix(".tmp.png")
-        fig.savefig(tmp, dpi=90)
-        tmp.replace(args.figure)
+        save_figure(fig, args.figure, dpi=90)  # atomic, with h4pin's marker
         print(f"wrote {args.figure}")
 
 

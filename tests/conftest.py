@@ -109,3 +109,16 @@ def assert_solve_close(actual, desired, cond: float, n: int, scale: float | None
         scale = np.max(np.abs(desired))
     tol = n * np.finfo(float).eps * cond * scale
     np.testing.assert_allclose(actual, desired, rtol=0, atol=tol)
+
+
+def run_cli_in_process(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
+    """``h4pin <argv>`` in this process (``h4pin.cli.main``): exit code, stdout, stderr."""
+    import sys
+
+    from h4pin import cli
+
+    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err

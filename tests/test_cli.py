@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import typer.main
+from conftest import run_cli_in_process
 
 import h4pin
 from h4pin import cli
@@ -123,12 +124,7 @@ def test_one_convention_over_the_commands():
     assert hidden == set(cli.RENAMED)
 
 
-def run_main(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    out = capsys.readouterr()
-    return info.value.code, out.out, out.err
+run_main = run_cli_in_process  # tests/conftest.py
 
 
 @pytest.mark.parametrize("command", [name for name, c in COMMANDS.items() if any(p.name == "model" for p in c.params)])

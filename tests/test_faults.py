@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli_in_process
 
 import h4pin
 from h4pin import cli
@@ -138,12 +139,7 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
     ]
 
 
-def run_cli(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    out = capsys.readouterr()
-    return info.value.code, out.out, out.err
+run_cli = run_cli_in_process  # tests/conftest.py
 
 
 def test_cli_errors_before_any_work(tmp_path, monkeypatch, capsys):

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import http.server
 import socket
-import sys
 import threading
 import time
 import warnings
@@ -16,18 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli_in_process
 
 import h4pin
-from h4pin import cli, limits
+from h4pin import limits
 from h4pin.errors import ParameterError
 
-
-def run_cli(argv: list[str], monkeypatch, capsys) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["h4pin", *argv])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    out = capsys.readouterr()
-    return info.value.code, out.out, out.err
+run_cli = run_cli_in_process  # tests/conftest.py
 
 
 def assert_refused(argv: list[str], words: list[str], monkeypatch, capsys, seconds: float = 15.0) -> str:
