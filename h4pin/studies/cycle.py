@@ -425,7 +425,12 @@ def cycle_dynamics(h4: H4, cycle: AdeptCycle, t: np.ndarray, payload: float = 0.
                    payload_at: np.ndarray | None = None, gravity: np.ndarray | None = None) -> list[Sample]:
     """:func:`sample` at each time of ``t`` (s), in a model with the payload and a ``pin.Data``
     of this call's own."""
-    model = payload_model(h4, payload, payload_at, gravity)
+    return samples_along(h4, payload_model(h4, payload, payload_at, gravity), cycle, t)
+
+
+def samples_along(h4: H4, model: pin.Model, cycle: AdeptCycle, t: np.ndarray) -> list[Sample]:
+    """:func:`sample` at each time of ``t`` (s) in ``model`` (the robot's, or a copy with other
+    inertias), with a ``pin.Data`` of this call's own."""
     data = model.createData()
     pose, vel, acc = cycle.sample(t)
     return [sample(h4, model, data, p, dv, da) for p, dv, da in zip(pose, vel, acc, strict=True)]
@@ -668,4 +673,4 @@ def write_figure(result: CycleResult, path: str | Path, others: Sequence[CycleRe
 
 __all__ = ["HEIGHT", "LENGTH", "AdeptCycle", "CycleResult", "Sample", "adept_cycle", "check_reachable",
            "closure_drift", "closure_rows", "cycle_dynamics", "dynamic_deflection", "newmark", "payload_model",
-           "quintic", "report", "run", "sample", "write_figure"]
+           "quintic", "report", "run", "sample", "samples_along", "write_figure"]

@@ -141,7 +141,7 @@ def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float
         for j in range(1, rigid_model.njoints):
             if em.model.getJointId(rigid_model.names[j]) not in plate_joints:
                 rigid_model.inertias[j] = pin.Inertia.Zero()
-    rows = _rows(h4, rigid_model, cycle, t)
+    rows = rigid.samples_along(h4, rigid_model, cycle, t)
     vmap = _velocity_map(h4.model, mm)
     names = tuple(n for n in em.stiffness)
     dofs = np.array([mm.joints[mm.getJointId(n)].idx_v for n in names])
@@ -173,12 +173,6 @@ def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float
     rotation = cf.rot_z(pose[:, 3])
     return Springs(names, k, kc, actuators, np.asarray(t, dtype=float), load, mass, output, rotation,
                    np.array([r.torque for r in rows]), np.array([r.load for r in rows]))
-
-
-def _rows(h4: H4, model: pin.Model, cycle: rigid.AdeptCycle, t: np.ndarray) -> list[rigid.Sample]:
-    data = model.createData()
-    pose, vel, acc = cycle.sample(t)
-    return [rigid.sample(h4, model, data, p, dv, da) for p, dv, da in zip(pose, vel, acc, strict=True)]
 
 
 def _plate_joints(h4: H4) -> list[int]:
