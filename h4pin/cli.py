@@ -110,14 +110,11 @@ def fail(message: str) -> None:
 
 def load_robot(variant: str | None, urdf: Path | None):
     """The robot named by ``--variant`` or ``--urdf`` (not both)."""
-    from h4pin import limits
     from h4pin.robot import load
 
     if variant and urdf:
         fail("give --variant or --urdf, not both")
-    h4 = load(urdf if urdf else (variant or "prototype"))
-    limits.check_springs(h4, str(urdf) if urdf else "--variant")  # within h4pin.limits.SPRING_RANGES
-    return h4
+    return load(urdf if urdf else (variant or "prototype"))  # springs within h4pin.limits.SPRING_RANGES
 
 
 # What the options every command shares say (typer.Option is called in each signature).

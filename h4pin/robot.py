@@ -45,6 +45,7 @@ from h4pin.inputs import check_real, describe, real_array, short
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
+from h4pin import limits
 
 
 def urdf_dir() -> Path:
@@ -152,7 +153,9 @@ def load(source: str | bytes | Path | H4Params = "prototype", *, springs: dict[s
 
     Raises:
         ParameterError: unknown variant name (the message lists them), a ``source`` of another
-            type, bad ``springs``, ``elements`` or ``bar_clearance`` (each named, with what it got).
+            type, bad ``springs``, ``elements`` or ``bar_clearance`` (each named, with what it got);
+            :class:`h4pin.limits.ImplausibleValueError` (a ParameterError) for spring data outside
+            :data:`h4pin.limits.SPRING_RANGES`, given here or in the URDF (a ``kc`` of 1e-300).
         URDFNotFoundError: the path does not exist (or cannot be read).
         MalformedURDFError: the file or text does not describe an H4 (the message names the element).
     """
@@ -282,6 +285,8 @@ class H4:
     def __init__(self, urdf_text: str, source: str = "URDF", *, springs: dict[str, Any] | None = None,
                  elements: Elements | dict[str, Any] | None = None, bar_clearance: float = BAR_CLEARANCE):
         desc = read(urdf_text, source, springs, bar_clearance)
+        # Spring data within h4pin.limits.SPRING_RANGES (a kc of 1e-300 is a typo, not a robot).
+        limits.check_springs(desc.geometry.springs, "springs" if springs else source)
         if elements is not None:
             desc = desc._replace(elements=_as_elements(elements))
         # What rebuilds this robot elsewhere (__reduce__): the override as read accepted it, as

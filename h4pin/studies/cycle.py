@@ -521,7 +521,6 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     limits.check_range("period", _positive("period", period, unit=" (s)"), "cycle_time")
     payload = limits.check_range("payload", _positive("payload", payload, zero=True, unit=" (kg)"), "payload")
     damping = _positive("damping", damping, zero=True)
-    limits.check_springs(h4, "h4")
     at = np.zeros(3) if payload_at is None else np.asarray(payload_at, dtype=float)
     cycle = adept_cycle(h4, period, check=0, **cycle_options)
     t = cycle.times(int(samples))

@@ -264,7 +264,6 @@ def study(h4, poses: np.ndarray | None = None, n_robots: int = 1000, sigmas: dic
     if model not in MODELS:
         raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
     g: H4Geometry = h4.geometry
-    limits.check_springs(h4, "h4")
     x = default_poses(h4) if poses is None else cf.as_poses(poses, "poses")
     x = np.atleast_2d(x)
     check_size(limits.count(n_robots), len(x))
