@@ -108,6 +108,12 @@ def fail(message: str) -> None:
     raise typer.Exit(2)
 
 
+def wrote(*paths: Path | str) -> None:
+    """One line ``wrote PATH`` per file a command wrote, in order."""
+    for path in paths:
+        typer.echo(f"wrote {path}")
+
+
 def load_robot(variant: str | None, urdf: Path | None):
     """The robot named by ``--variant`` or ``--urdf`` (not both)."""
     from h4pin.robot import load
@@ -278,7 +284,7 @@ def view(
         for line in scene.legend:
             typer.echo(line)
         if out is not None:
-            typer.echo(f"wrote {scene.write_html(out)}")
+            wrote(scene.write_html(out))
             return
         typer.echo(f"meshcat: {scene.url}  (Ctrl-C to stop the server)")
         while True:
@@ -332,7 +338,7 @@ def tolerance(
         else None
     typer.echo(tol.report(res, sens))
     if figure is not None:
-        typer.echo(f"wrote {tol.write_figure(res, figure)}")
+        wrote(tol.write_figure(res, figure))
 
 
 @app.command()
@@ -359,7 +365,7 @@ def export(
     warn_renamed()
     h4 = load_robot(variant, urdf)
     try:
-        typer.echo(f"wrote {write_mjcf(h4, out, elastic=elastic)}")
+        wrote(write_mjcf(h4, out, elastic=elastic))
     except OSError as exc:
         fail(f"cannot write {out}: {exc.strerror or exc}")
 
@@ -420,10 +426,7 @@ def atlas(
         if frequency:
             f = ds.first_frequency
             typer.echo(f"first natural frequency {float(f.min()):.1f} to {float(f.max()):.1f} Hz")
-    typer.echo(f"wrote {out}")
-    if figures is not None:
-        for path in atlas_module.plot(ds, figures):
-            typer.echo(f"wrote {path}")
+    wrote(out, *(atlas_module.plot(ds, figures) if figures is not None else ()))
 
 
 @app.command()
@@ -473,11 +476,8 @@ def sweep(
         hz = f", first frequency {res['first_frequency'][d]:.1f} Hz" if frequency else ""
         typer.echo(f"  design {d}: worst {res['worst'][d] * 1e6:.1f} um/N, volume {res['volume'][d] * 1e3:.0f} dm^3"
                    f"{hz}")
-    if figure is not None:
-        typer.echo(f"wrote {sweep_module.plot_pareto(res, figure)}")
-    if urdf_dir is not None:
-        for path in sweep_module.write_best(res, urdf_dir):
-            typer.echo(f"wrote {path}")
+    wrote(*([sweep_module.plot_pareto(res, figure)] if figure is not None else ()),
+          *(sweep_module.write_best(res, urdf_dir) if urdf_dir is not None else ()))
 
 
 @app.command()
@@ -515,7 +515,7 @@ def cycle(
     results = [cycle_module.run(h4, time, p, samples=samples, model=model, heading=heading) for p in payload]
     typer.echo(cycle_module.report(results))
     if figure is not None:
-        typer.echo(f"wrote {cycle_module.write_figure(results[-1], figure, results[:-1])}")
+        wrote(cycle_module.write_figure(results[-1], figure, results[:-1]))
 
 
 @app.command()
@@ -579,7 +579,7 @@ def modes(
         f = ds.first_frequency.values
         typer.echo(f"first frequency over the map: {np.nanmin(f):.1f} to {np.nanmax(f):.1f} Hz "
                    f"({int(np.isfinite(f).sum())} of {f.size} poses reachable and regular)")
-        typer.echo(f"wrote {frequency.plot_map(ds, figure)}")
+        wrote(frequency.plot_map(ds, figure))
 
 
 @app.command()

@@ -35,6 +35,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.geometry import BAR_CLEARANCE, params_from_geometry
 from h4pin.description.params import VARIANTS, H4Params
@@ -45,7 +46,6 @@ from h4pin.inputs import check_real, describe, real_array, short
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
-from h4pin import limits
 
 
 def urdf_dir() -> Path:

@@ -338,9 +338,9 @@ class CycleResult:
         model: the compliance model (``"consistent"`` or ``"paper"``).
         t: (N + 1,) s. pose, velocity, acceleration: (N + 1, 4) of [x, y, z, theta].
         q: (N + 1, nq), v, a: (N + 1, nv) the joints' motion.
-        torque: (N + 1, 4) N.m, actuator torques.
-        closure_forces: (N + 1, 8, 3) N, force of each bar on the plate at B_ij.
-        load: (N + 1, 8) Gamma_ext = [F, T, t1, t2] on the elastic legs (N, N.m).
+        load: (N + 1, 8) Gamma_ext = [F, T, t1, t2] on the elastic legs (N, N.m), and what
+            carries it: torque (N + 1, 4) N.m, the actuator torques; closure_forces
+            (N + 1, 8, 3) N, the force of each bar on the plate at B_ij.
         deflection: (N + 1, 8) dtp = K Gamma_ext = [dD (m), dOmega (rad), domega_1, domega_2].
         tool: (3,) m, the tool point's offset from D (central-bar frame).
         tool_deflection: (N + 1, 3) m, the tool point's displacement ``dD + dOmega x (p - D)``.
@@ -371,9 +371,9 @@ class CycleResult:
     q: np.ndarray
     v: np.ndarray
     a: np.ndarray
+    load: np.ndarray
     torque: np.ndarray
     closure_forces: np.ndarray
-    load: np.ndarray
     deflection: np.ndarray
     tool: np.ndarray
     tool_deflection: np.ndarray
@@ -551,8 +551,8 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     inertia = np.array([s.inertia_plate for s in rows])
     dynamic = dynamic_deflection(sym, inertia, load, cycle.period, damping)
     return CycleResult(cycle, payload, at, model, t, pose, vel, acc, np.array([s.q for s in rows]),
-                       np.array([s.v for s in rows]), np.array([s.a for s in rows]),
-                       np.array([s.torque for s in rows]), np.array([s.closure_forces for s in rows]), load, dtp,
+                       np.array([s.v for s in rows]), np.array([s.a for s in rows]), load,
+                       np.array([s.torque for s in rows]), np.array([s.closure_forces for s in rows]), dtp,
                        o, tool_d, {n: terms[n] for n in (*TERMS, *(k for k in terms if k not in TERMS))},
                        f1_plate, f1_robot, f99, res.matrix, inertia, damping, dynamic)
 
@@ -580,20 +580,24 @@ def report(results: CycleResult | Sequence[CycleResult]) -> str:
     row("RMS |dD| [um]", [f"{r.rms_norm * 1e6:.1f}" for r in rs])
     if any(np.any(r.tool != 0) for r in rs):
         row("peak tool displacement [um]", [f"{r.tool_peak_norm * 1e6:.1f}" for r in rs])
-    row("peak |dOmega| [mrad]", [f"{np.linalg.norm(r.deflection[:, 3:6], axis=1).max() * 1e3:.3f}" for r in rs])
-    row("peak actuator torque [N.m]", [f"{np.abs(r.torque).max():.2f}" for r in rs])
-    row("peak |F| on the legs [N]", [f"{np.linalg.norm(r.load[:, :3], axis=1).max():.1f}" for r in rs])
-    row("peak |T| at D [N.m]", [f"{np.linalg.norm(r.load[:, 3:6], axis=1).max():.3f}" for r in rs])
-    row("peak |t_k| [N.m]", [f"{np.abs(r.load[:, 6:]).max():.2e}" for r in rs])
-    for name in rs[0].term_deflection:
-        row(f"  peak |dD|, {name} term [um]",
-            [f"{np.linalg.norm(r.term_deflection[name], axis=1).max() * 1e6:.1f}" for r in rs])
-    row("f1 plate on massless legs [Hz]", [f"{r.f1_plate:.0f}" for r in rs])
-    row("f1 whole robot, x y z theta [Hz]", [f"{r.f1_robot:.0f}" for r in rs])
-    row("99 % of the load below [Hz]", [f"{r.f99:.0f}" for r in rs])
-    row("  ratio to f1 (whole robot)", [f"{r.f99 / r.f1_robot:.2f}" for r in rs])
-    row("peak |dD| with vibration [um]", [f"{r.dynamic_peak_norm * 1e6:.1f}" for r in rs])
-    row("  ratio to quasi-static", [f"{r.dynamic_peak_norm / r.peak_norm:.2f}" for r in rs])
+    def peak(v: np.ndarray) -> float:  # the largest norm of rows over the cycle
+        return np.linalg.norm(v, axis=1).max()
+
+    cells = [("peak |dOmega| [mrad]", ".3f", lambda r: peak(r.deflection[:, 3:6]) * 1e3),
+             ("peak actuator torque [N.m]", ".2f", lambda r: np.abs(r.torque).max()),
+             ("peak |F| on the legs [N]", ".1f", lambda r: peak(r.load[:, :3])),
+             ("peak |T| at D [N.m]", ".3f", lambda r: peak(r.load[:, 3:6])),
+             ("peak |t_k| [N.m]", ".2e", lambda r: np.abs(r.load[:, 6:]).max())]
+    cells += [(f"  peak |dD|, {name} term [um]", ".1f", lambda r, name=name: peak(r.term_deflection[name]) * 1e6)
+              for name in rs[0].term_deflection]
+    cells += [("f1 plate on massless legs [Hz]", ".0f", lambda r: r.f1_plate),
+              ("f1 whole robot, x y z theta [Hz]", ".0f", lambda r: r.f1_robot),
+              ("99 % of the load below [Hz]", ".0f", lambda r: r.f99),
+              ("  ratio to f1 (whole robot)", ".2f", lambda r: r.f99 / r.f1_robot),
+              ("peak |dD| with vibration [um]", ".1f", lambda r: r.dynamic_peak_norm * 1e6),
+              ("  ratio to quasi-static", ".2f", lambda r: r.dynamic_peak_norm / r.peak_norm)]
+    for name, spec, value in cells:
+        row(name, [format(value(r), spec) for r in rs])
     lines += ["", "Quasi-static: dD = K Gamma_ext, Gamma_ext the plate's (and payload's) weight and d'Alembert "
               "load; the legs' own", "inertia is carried by the actuators and not in the load. 'With vibration': "
               f"the plate on the massless legs, {rs[0].damping:.0%} damping", "at f1, periodic steady state "
