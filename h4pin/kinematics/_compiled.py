@@ -25,15 +25,15 @@ def _rot(axis0, axis1, axis2, angle, x0, x1, x2):
     return x0 * c + cx * s + axis0 * dot, x1 * c + cy * s + axis1 * dot, x2 * c + cz * s + axis2 * dot
 
 
-@njit(cache=True, nogil=True)
-def _angle_about(a, x, y):
-    """Angle of the rotation about unit ``a`` taking x to y (their parts normal to a)."""
-    xa = a[0] * x[0] + a[1] * x[1] + a[2] * x[2]
-    ya = a[0] * y[0] + a[1] * y[1] + a[2] * y[2]
-    xp = x - a * xa
-    yp = y - a * ya
-    cr = np.array([xp[1] * yp[2] - xp[2] * yp[1], xp[2] * yp[0] - xp[0] * yp[2], xp[0] * yp[1] - xp[1] * yp[0]])
-    return math.atan2(a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2], xp[0] * yp[0] + xp[1] * yp[1] + xp[2] * yp[2])
+@njit(cache=True, nogil=True, inline="always")
+def _angle_about(a0, a1, a2, x0, x1, x2, y0, y1, y2):
+    """Angle of the rotation about the unit axis a taking x to y (their parts normal to a)."""
+    xa = a0 * x0 + a1 * x1 + a2 * x2
+    ya = a0 * y0 + a1 * y1 + a2 * y2
+    p0, p1, p2 = x0 - a0 * xa, x1 - a1 * xa, x2 - a2 * xa
+    r0, r1, r2 = y0 - a0 * ya, y1 - a1 * ya, y2 - a2 * ya
+    c0, c1, c2 = p1 * r2 - p2 * r1, p2 * r0 - p0 * r2, p0 * r1 - p1 * r0
+    return math.atan2(a0 * c0 + a1 * c1 + a2 * c2, p0 * r0 + p1 * r1 + p2 * r2)
 
 
 @njit(cache=True, nogil=True)
@@ -42,46 +42,50 @@ def universal_angles(q, D, R, omega, P, u, A0, lat, C0, b, v, e1, e2, p0):  # pr
     :meth:`h4pin.H4.assemble` (Paden-Kahan subproblem 2, the branch with the smaller |beta|)."""
     alpha = np.empty(8)
     beta = np.empty(8)
-    lat_rot = np.empty((2, 3, 3))
+    lat_rot = np.empty((2, 3, 3))  # R Rot(v_k, omega_k)
     for k in range(2):
-        # R Rot(v_k, omega_k)
         for col in range(3):
-            e = np.zeros(3)
-            e[col] = 1.0
-            r0, r1, r2 = _rot(v[k, 0], v[k, 1], v[k, 2], omega[k], e[0], e[1], e[2])
+            r0, r1, r2 = _rot(v[k, 0], v[k, 1], v[k, 2], omega[k], 1.0 if col == 0 else 0.0, 1.0 if col == 1 else 0.0,
+                              1.0 if col == 2 else 0.0)
             for row in range(3):
                 lat_rot[k, row, col] = R[row, 0] * r0 + R[row, 1] * r1 + R[row, 2] * r2
-    for n in range(8):
+    for n in range(8):  # scalars only: no allocation in the loop (each costs tens of ns)
         i = n // 2
         k = lat[n]
         # A_ij and B_ij
         a0, a1, a2 = _rot(u[i, 0], u[i, 1], u[i, 2], q[i], A0[n, 0] - P[i, 0], A0[n, 1] - P[i, 1], A0[n, 2] - P[i, 2])
-        bx = np.empty(3)
-        for r in range(3):
-            bx[r] = (D[r] + R[r, 0] * C0[k, 0] + R[r, 1] * C0[k, 1] + R[r, 2] * C0[k, 2]
-                     + lat_rot[k, r, 0] * b[n, 0] + lat_rot[k, r, 1] * b[n, 1] + lat_rot[k, r, 2] * b[n, 2])
-        w0, w1, w2 = bx[0] - P[i, 0] - a0, bx[1] - P[i, 1] - a1, bx[2] - P[i, 2] - a2
+        bx0 = (D[0] + R[0, 0] * C0[k, 0] + R[0, 1] * C0[k, 1] + R[0, 2] * C0[k, 2]
+               + lat_rot[k, 0, 0] * b[n, 0] + lat_rot[k, 0, 1] * b[n, 1] + lat_rot[k, 0, 2] * b[n, 2])
+        bx1 = (D[1] + R[1, 0] * C0[k, 0] + R[1, 1] * C0[k, 1] + R[1, 2] * C0[k, 2]
+               + lat_rot[k, 1, 0] * b[n, 0] + lat_rot[k, 1, 1] * b[n, 1] + lat_rot[k, 1, 2] * b[n, 2])
+        bx2 = (D[2] + R[2, 0] * C0[k, 0] + R[2, 1] * C0[k, 1] + R[2, 2] * C0[k, 2]
+               + lat_rot[k, 2, 0] * b[n, 0] + lat_rot[k, 2, 1] * b[n, 1] + lat_rot[k, 2, 2] * b[n, 2])
+        w0, w1, w2 = bx0 - P[i, 0] - a0, bx1 - P[i, 1] - a1, bx2 - P[i, 2] - a2
         w0, w1, w2 = _rot(u[i, 0], u[i, 1], u[i, 2], -q[i], w0, w1, w2)
         norm_p = math.sqrt(p0[n, 0] ** 2 + p0[n, 1] ** 2 + p0[n, 2] ** 2)
         scale = norm_p / math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        t = np.array([w0 * scale, w1 * scale, w2 * scale])
-        f1, f2, p = e1[n], e2[n], p0[n]
-        c12 = f1[0] * f2[0] + f1[1] * f2[1] + f1[2] * f2[2]
-        e1t = f1[0] * t[0] + f1[1] * t[1] + f1[2] * t[2]
-        e2p = f2[0] * p[0] + f2[1] * p[1] + f2[2] * p[2]
+        t0, t1, t2 = w0 * scale, w1 * scale, w2 * scale
+        f10, f11, f12 = e1[n, 0], e1[n, 1], e1[n, 2]
+        f20, f21, f22 = e2[n, 0], e2[n, 1], e2[n, 2]
+        pp0, pp1, pp2 = p0[n, 0], p0[n, 1], p0[n, 2]
+        c12 = f10 * f20 + f11 * f21 + f12 * f22
+        e1t = f10 * t0 + f11 * t1 + f12 * t2
+        e2p = f20 * pp0 + f21 * pp1 + f22 * pp2
         den = 1.0 - c12 * c12
         ca = (e1t - c12 * e2p) / den
         cb = (e2p - c12 * e1t) / den
-        nn = np.array([f1[1] * f2[2] - f1[2] * f2[1], f1[2] * f2[0] - f1[0] * f2[2], f1[0] * f2[1] - f1[1] * f2[0]])
-        g2 = (norm_p * norm_p - ca * ca - cb * cb - 2 * ca * cb * c12) / (nn[0] ** 2 + nn[1] ** 2 + nn[2] ** 2)
+        n0, n1, n2 = f11 * f22 - f12 * f21, f12 * f20 - f10 * f22, f10 * f21 - f11 * f20
+        g2 = (norm_p * norm_p - ca * ca - cb * cb - 2 * ca * cb * c12) / (n0 * n0 + n1 * n1 + n2 * n2)
         gam = math.sqrt(max(g2, 0.0))
         best_a, best_b = 0.0, 1e300
         for s in (1.0, -1.0):
-            c = ca * f1 + cb * f2 + (s * gam) * nn
-            bb = _angle_about(f2, p, c)
+            c0 = ca * f10 + cb * f20 + (s * gam) * n0
+            c1 = ca * f11 + cb * f21 + (s * gam) * n1
+            c2 = ca * f12 + cb * f22 + (s * gam) * n2
+            bb = _angle_about(f20, f21, f22, pp0, pp1, pp2, c0, c1, c2)
             if abs(bb) < abs(best_b):
                 best_b = bb
-                best_a = _angle_about(f1, c, t)
+                best_a = _angle_about(f10, f11, f12, c0, c1, c2, t0, t1, t2)
         alpha[n] = best_a
         beta[n] = best_b
     return alpha, beta

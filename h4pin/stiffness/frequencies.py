@@ -220,13 +220,12 @@ def _spatial(R, o, inertia, out):
     out[0, 0] = out[1, 1] = out[2, 2] = m
     out[0, 4], out[0, 5], out[1, 3], out[1, 5], out[2, 3], out[2, 4] = m * cz, -m * cy, -m * cz, m * cx, m * cy, -m * cx
     out[4, 0], out[5, 0], out[3, 1], out[5, 1], out[3, 2], out[4, 2] = m * cz, -m * cy, -m * cz, m * cx, m * cy, -m * cx
-    for a in range(3):  # R I R^T
+    for a in range(3):  # R I R^T: (R I) row a, then its products with the rows of R
+        r0 = R[a, 0] * inertia[4] + R[a, 1] * inertia[7] + R[a, 2] * inertia[10]
+        r1 = R[a, 0] * inertia[5] + R[a, 1] * inertia[8] + R[a, 2] * inertia[11]
+        r2 = R[a, 0] * inertia[6] + R[a, 1] * inertia[9] + R[a, 2] * inertia[12]
         for b in range(3):
-            t = 0.0
-            for k in range(3):
-                for l in range(3):
-                    t += R[a, k] * inertia[4 + 3 * k + l] * R[b, l]
-            out[3 + a, 3 + b] = t
+            out[3 + a, 3 + b] = r0 * R[b, 0] + r1 * R[b, 1] + r2 * R[b, 2]
     out[3, 3] += m * (cy * cy + cz * cz)  # - m [c]x [c]x
     out[4, 4] += m * (cx * cx + cz * cz)
     out[5, 5] += m * (cx * cx + cy * cy)
@@ -377,26 +376,25 @@ def _y_layout(EG, sy):
 def _add_body(My, M6, J, cols, nc):
     """My[cols, cols] += J^T M6 J (J (6, nc), the body's twist [v at its origin; omega] per unit
     y coordinate cols[c])."""
-    mv = np.empty(6)
-    for c in range(nc):
-        for r in range(6):
-            t = 0.0
-            for k in range(6):
-                t += M6[r, k] * J[k, c]
-            mv[r] = t
+    for c in range(nc):  # M6 J[:, c] in six scalars (no allocation)
+        j0, j1, j2, j3, j4, j5 = J[0, c], J[1, c], J[2, c], J[3, c], J[4, c], J[5, c]
+        m0 = M6[0, 0] * j0 + M6[0, 1] * j1 + M6[0, 2] * j2 + M6[0, 3] * j3 + M6[0, 4] * j4 + M6[0, 5] * j5
+        m1 = M6[1, 0] * j0 + M6[1, 1] * j1 + M6[1, 2] * j2 + M6[1, 3] * j3 + M6[1, 4] * j4 + M6[1, 5] * j5
+        m2 = M6[2, 0] * j0 + M6[2, 1] * j1 + M6[2, 2] * j2 + M6[2, 3] * j3 + M6[2, 4] * j4 + M6[2, 5] * j5
+        m3 = M6[3, 0] * j0 + M6[3, 1] * j1 + M6[3, 2] * j2 + M6[3, 3] * j3 + M6[3, 4] * j4 + M6[3, 5] * j5
+        m4 = M6[4, 0] * j0 + M6[4, 1] * j1 + M6[4, 2] * j2 + M6[4, 3] * j3 + M6[4, 4] * j4 + M6[4, 5] * j5
+        m5 = M6[5, 0] * j0 + M6[5, 1] * j1 + M6[5, 2] * j2 + M6[5, 3] * j3 + M6[5, 4] * j4 + M6[5, 5] * j5
         for c2 in range(c, nc):
-            t = 0.0
-            for r in range(6):
-                t += J[r, c2] * mv[r]
+            t = (J[0, c2] * m0 + J[1, c2] * m1 + J[2, c2] * m2 + J[3, c2] * m3 + J[4, c2] * m4 + J[5, c2] * m5)
             My[cols[c], cols[c2]] += t
             if c2 != c:
                 My[cols[c2], cols[c]] += t
 
 
 @njit(cache=True, nogil=True)
-def _put(J, c, v, w):
-    J[0, c], J[1, c], J[2, c] = v[0], v[1], v[2]
-    J[3, c], J[4, c], J[5, c] = w[0], w[1], w[2]
+def _put(J, c, v0, v1, v2, w0, w1, w2):
+    J[0, c], J[1, c], J[2, c] = v0, v1, v2
+    J[3, c], J[4, c], J[5, c] = w0, w1, w2
 
 
 @njit(cache=True, nogil=True)
@@ -429,10 +427,12 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     Rz, Rf, R1p, R1, R2p, Rq, Rp, Rlp = T3[0], T3[1], T3[2], T3[3], T3[4], T3[5], T3[6], T3[7]
     Rz[0, 0], Rz[0, 1], Rz[0, 2], Rz[1, 0], Rz[1, 1], Rz[1, 2] = ct, -st, 0.0, st, ct, 0.0
     Rz[2, 0], Rz[2, 1], Rz[2, 2] = 0.0, 0.0, 1.0
-    alpha, beta = _compiled.universal_packed(q, D, Rz, np.array([-th, -th]), CF, CI)
+    omega = W[19]
+    omega[0] = omega[1] = -th
+    alpha, beta = _compiled.universal_packed(q, D, Rz, omega, CF, CI)
     A = Xrow[X_S + _A:X_S + _A + 24].reshape(8, 3)
     B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
-    v3 = np.empty(3)
+    v3 = W[20]
     # axes rows: 0-3 u_i, 4-7 A_i, 8-11 e_i (forearm axis), 12-19 a1_n, 20-27 a2_n, 28-29 lateral
     # axes, 30-45 the sites' points (joint k, arm i, mount i, tip i)
     for i in range(4):
@@ -478,7 +478,7 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     _mm(Rz, bp[0:9].reshape(3, 3), Rp)
     for a in range(3):
         v3[a] = bp[9 + a] - bp[12 + a]
-    _mv(Rz, v3.copy(), O[20])
+    _mv(Rz, v3, O[20])
     for a in range(3):
         O[20, a] += D[a]
     _spatial(Rp, O[20], bp[15:15 + _INERTIA], M6[20])
@@ -513,7 +513,8 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
     B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
     ny, ns = _y_layout(EG, sy)
     R[:ny, :ns] = 0.0
-    ball = np.zeros(8)
+    ball = W[18]
+    ball[:] = 0.0
     for row in range(int(EG[0])):
         base = EL_HEADER + EL_ROW * row
         if int(EG[base]) == SITE_BAR:
@@ -587,7 +588,7 @@ def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
     for k in range(2):  # lateral bar k: dtp's first six, its revolute, its joint site
         b = 21 + k
         nc = _site_columns(J, cols, 0, 0, O[b], D)
-        _put(J, nc, np.zeros(3), axes[28 + k])
+        _put(J, nc, 0.0, 0.0, 0.0, axes[28 + k, 0], axes[28 + k, 1], axes[28 + k, 2])
         cols[nc] = 6 + k
         nc += 1
         nc = _site_columns(J, cols, nc, sy[0, k], O[b], axes[30 + k])
@@ -596,10 +597,9 @@ def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
         k = int(G[pipeline._LAT + 2 * i])
         P = G[_P + 3 * i:_P + 3 * i + 3]
         # the forearm: phi_i and the mount site
-        w = axes[i].copy()
-        v = np.zeros(3)
-        v[0], v[1], v[2] = _cr(w[0], w[1], w[2], O[i, 0] - P[0], O[i, 1] - P[1], O[i, 2] - P[2])
-        _put(J, 0, v, w)
+        w0, w1, w2 = axes[i, 0], axes[i, 1], axes[i, 2]
+        v0, v1, v2 = _cr(w0, w1, w2, O[i, 0] - P[0], O[i, 1] - P[1], O[i, 2] - P[2])
+        _put(J, 0, v0, v1, v2, w0, w1, w2)
         cols[0] = 8 + 2 * i
         nc = _site_columns(J, cols, 1, sy[2, i], O[i], axes[38 + i])
         _add_body(My, M6[i], J, cols, nc)
@@ -624,17 +624,18 @@ def _eigenvalues(ny, ns, W, freq):  # pragma: no cover - compiled
                 t2 += R[a, c] * MR[a, c2]
             H[c, c2] = t2
             H[c2, c] = t2
-    d = np.empty(ns)
-    e = np.empty(ns)
+    d = W[16][:ns]
+    e = W[17][:ns]
     _tridiagonal(H, ns, d, e)
     _ql(d, e, ns)
-    mu = np.sort(d)[::-1]
+    d.sort()  # in place: mu, largest first, is d[ns - 1 - a]
+    top = d[ns - 1]
     massive = 0
     for a in range(ns):
-        if mu[a] > MASSLESS_TOL * mu[0] and mu[0] > 0.0:
+        if d[ns - 1 - a] > MASSLESS_TOL * top and top > 0.0:
             massive += 1
     for a in range(freq.shape[0]):
-        freq[a] = 1.0 / (2.0 * math.pi * math.sqrt(mu[a])) if a < massive else np.nan
+        freq[a] = 1.0 / (2.0 * math.pi * math.sqrt(d[ns - 1 - a])) if a < massive else np.nan
     return massive
 
 
@@ -645,14 +646,12 @@ def _site_columns(J, cols, nc, y0, origin, o):
     if y0 < 0:
         return nc
     for d in range(6):
-        v = np.zeros(3)
-        w = np.zeros(3)
         if d < 3:
-            v[d] = 1.0
+            _put(J, nc, 1.0 if d == 0 else 0.0, 1.0 if d == 1 else 0.0, 1.0 if d == 2 else 0.0, 0.0, 0.0, 0.0)
         else:
-            w[d - 3] = 1.0
-            v[0], v[1], v[2] = _cr(w[0], w[1], w[2], origin[0] - o[0], origin[1] - o[1], origin[2] - o[2])
-        _put(J, nc, v, w)
+            w0, w1, w2 = 1.0 if d == 3 else 0.0, 1.0 if d == 4 else 0.0, 1.0 if d == 5 else 0.0
+            v0, v1, v2 = _cr(w0, w1, w2, origin[0] - o[0], origin[1] - o[1], origin[2] - o[2])
+            _put(J, nc, v0, v1, v2, w0, w1, w2)
         cols[nc] = y0 + d
         nc += 1
     return nc
@@ -730,7 +729,8 @@ def _work(ny: int, ns: int) -> tuple:
             np.full((4, 4), -1, dtype=np.int64), np.zeros((ny, ny)), np.zeros((ny, ns)), np.zeros((ny, ns)),
             np.zeros((ns, ns)), np.zeros((6, 34)), np.zeros((6, 34)), np.zeros(34, dtype=np.int64), np.zeros(4),
             np.zeros((4, 6)),
-            np.zeros((pipeline._XROWS, 1)), np.zeros((8, 3, 3)))
+            np.zeros((pipeline._XROWS, 1)), np.zeros((8, 3, 3)),
+            np.zeros(ns), np.zeros(ns), np.zeros(8), np.zeros(2), np.zeros(3))  # d, e; ball; omega; v3
 
 
 @njit(cache=True, nogil=True)
