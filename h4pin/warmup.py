@@ -57,11 +57,10 @@ def _study_fields() -> None:
 def _studies(h4) -> None:
     """A one-pose atlas and a one-design sweep, natural frequencies included, through the code
     their commands run: every signature they compile is compiled here too. Numba compiles one
-    version per signature, and a signature includes each array's layout and read-only flag:
-    the sweep's designs pass their mass model read-only (``pack_masses_params``) where a loaded
-    robot passes its configuration constants writable, so the sweep needs a version of the
-    natural frequencies of its own (``tests/test_warmup_coverage.py`` checks that the commands
-    compile nothing after this warm-up)."""
+    version per signature, and a signature includes each array's layout and read-only flag: the
+    studies pass the same kinds of arrays as ``h4pin.modes`` (the sweep's configuration constants
+    read-only, as a loaded robot's), so that this step compiles little of its own
+    (``tests/test_warmup_coverage.py`` checks that the commands compile nothing after it)."""
     from h4pin.extras import MissingExtraError
     from h4pin.kinematics import closed_form as cf
 

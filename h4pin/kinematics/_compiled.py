@@ -25,7 +25,7 @@ def _rot(axis0, axis1, axis2, angle, x0, x1, x2):
     return x0 * c + cx * s + axis0 * dot, x1 * c + cy * s + axis1 * dot, x2 * c + cz * s + axis2 * dot
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _angle_about(a0, a1, a2, x0, x1, x2, y0, y1, y2):
     """Angle of the rotation about the unit axis a taking x to y (their parts normal to a)."""
     xa = a0 * x0 + a1 * x1 + a2 * x2

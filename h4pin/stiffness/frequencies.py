@@ -173,6 +173,8 @@ def pack_masses_params(params: Any, payload: Any = None) -> tuple[np.ndarray, np
     CF, CI = _compiled.pack_configuration(g.P, g.u, g.A0, g.C0, g.b, g.v, mm.u1_axis, mm.u2_axis, mm.bar_end,
                                           np.ones(2), _EYE, zero, zero, g.lat, np.zeros(4, dtype=np.int64),
                                           np.zeros((8, 2), dtype=np.int64), 0, np.zeros(2, dtype=np.int64))
+    for a in (CF, CI):  # read-only, as a loaded robot's (one compiled version of frequencies_run for both)
+        a.setflags(write=False)
     return _pack(records, payload), CF, CI
 
 
@@ -180,7 +182,7 @@ def pack_masses_params(params: Any, payload: Any = None) -> tuple[np.ndarray, np
 # Compiled: small dense algebra
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _mm(A, B, C):
     """C = A B (3 x 3, C apart from A and B): no allocation, no BLAS call."""
     for a in range(3):
@@ -188,7 +190,7 @@ def _mm(A, B, C):
             C[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _mv(A, v, out):
     """out = A v (3 x 3 times 3)."""
     x, y, z = v[0], v[1], v[2]
@@ -196,7 +198,7 @@ def _mv(A, v, out):
         out[a] = A[a, 0] * x + A[a, 1] * y + A[a, 2] * z
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _rotm(a, angle, C):
     """C = the rotation of ``angle`` about the unit axis a (Rodrigues)."""
     c, s = math.cos(angle), math.sin(angle)
@@ -329,13 +331,13 @@ def _ql(d, e, n):
             e[m] = 0.0
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _cr(ax, ay, az, bx, by, bz):
     """(a x b) as a tuple (no array: nothing to allocate)."""
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _inv3(a, b, c, d, e, f, g, h, k, out):
     """out = [[a, b, c], [d, e, f], [g, h, k]]^-1 (adjugate over determinant)."""
     A, B, C = e * k - f * h, f * g - d * k, d * h - e * g

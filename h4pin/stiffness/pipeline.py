@@ -789,7 +789,8 @@ def _element_term(G, EG, nl, S, X, E, Y, Z, kind):  # pragma: no cover - compile
     """The term ``Y E Y^T`` into E (8, 8, LANES) of every element kind that is on (``kind`` < 0)
     or of row ``kind`` of the table alone (Z (8, 8, LANES) scratch). Compiled once and called by
     both entries (not inlined: its code is a fifth of the pipeline's, and it runs only for robots
-    with elements)."""
+    with elements), with ``nl`` a run-time count: a compile-time lane count would compile it once
+    per entry, the one-lane version unrolled (14 s of compile of its own)."""
     for a in range(8):
         for b in range(8):
             for l in range(nl):
@@ -982,7 +983,7 @@ def _entry(lanes: int):
             _factors(G, lanes, S, Y, F)
             _assemble(G, model, lanes, F, Y, U, M, TB, want_terms)  # M1 is spent: M takes K
             for row in range(kinds if want_terms else min(kinds, 1)):  # the element terms, added to K
-                _element_term(G, EG, lanes, S, X, E, Y, Z, row if want_terms else -1)
+                _element_term(G, EG, S.shape[1], S, X, E, Y, Z, row if want_terms else -1)  # run-time count
                 for a in range(8):
                     for c in range(8):
                         for l in range(lanes):
