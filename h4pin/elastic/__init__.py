@@ -50,6 +50,8 @@ class _OldModesModule(_types.ModuleType):
     import of the old module path still works one release, with a warning."""
 
     def __getattr__(self, name: str):
+        if name.startswith("__"):  # tools that walk sys.modules (inspect, pytest) ask for __file__ etc.
+            raise AttributeError(name)
         _warnings.warn("the module h4pin.elastic.modes is now h4pin.elastic.modal (h4pin.elastic.modes is the "
                        "function); the old module path goes in the next release", DeprecationWarning, stacklevel=2)
         return getattr(_modal, name)
