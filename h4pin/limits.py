@@ -33,8 +33,9 @@ payload            0 to 1e3 kg          a point mass at D (the robot's plate is 
 exaggeration       0 < e <= 1e6         factor on a drawn deflection (um to m)
 scale              1e-9 to 1e9          ellipsoid scale of the viewer, mm per um/N
 cycle time         1e-3 to 1e6 s        one pick-and-place cycle (the paper's is 0.5 s)
-stiffness          1e-6 to 1e15         kc (N.m/rad), E, G, Eb (Pa)
-second moment      1e-24 to 1 m^4       I, I0 of the forearm section
+stiffness          1e-6 to 1e25         kc (N.m/rad), E, G, Eb (Pa); a near-rigid stand-in
+                                        (1e9 x steel, as the identification's limits use) passes
+second moment      1e-24 to 1e3 m^4     I, I0 of the forearm section (same: a stand-in passes)
 section            1e-12 to 1 m^2       Sb of a bar
 stressed fraction  1e-6 to 1            forearm_stressed_fraction
 =================  ===================  ==================================================
@@ -227,8 +228,8 @@ RANGES: dict[str, tuple[float, float, str, str]] = {
 }
 #: Spring datum (h4pin.H4Params / URDF field) -> (low, high, unit).
 SPRING_RANGES: dict[str, tuple[float, float, str]] = {
-    "kc": (1e-6, 1e15, "N.m/rad"), "E": (1e-6, 1e15, "Pa"), "G": (1e-6, 1e15, "Pa"), "Eb": (1e-6, 1e15, "Pa"),
-    "I": (1e-24, 1.0, "m^4"), "I0": (1e-24, 1.0, "m^4"), "Sb": (1e-12, 1.0, "m^2"),
+    "kc": (1e-6, 1e25, "N.m/rad"), "E": (1e-6, 1e25, "Pa"), "G": (1e-6, 1e25, "Pa"), "Eb": (1e-6, 1e25, "Pa"),
+    "I": (1e-24, 1e3, "m^4"), "I0": (1e-24, 1e3, "m^4"), "Sb": (1e-12, 1.0, "m^2"),
     "forearm_stressed_fraction": (1e-6, 1.0, "1"),
 }
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from h4pin import verdicts
+from h4pin import limits, verdicts
 from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.modal import Modes, Payload
 from h4pin.elastic.modal import modes as pinocchio_modes
@@ -98,6 +98,8 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
     link_inertias = check_flag(link_inertias, "link_inertias")
     if payload is not None and not isinstance(payload, Payload):
         raise ParameterError(f"payload must be an h4pin.Payload or None, got {describe(payload)}")
+    if payload is not None:  # an H4's plate weighs about 1 kg: a 1e12 kg payload is a typo
+        limits.check_range("payload mass", payload.mass, "payload")
     x = as_poses(real_array(pose, "pose")).copy()
     x.setflags(write=False)
     if data is not None:

@@ -7,6 +7,7 @@ allocation and without writing anything."""
 from __future__ import annotations
 
 import http.server
+import re
 import socket
 import threading
 import time
@@ -215,19 +216,39 @@ def test_cycle_refuses_an_absurd_period_and_payload(proto):
         cycle.run(proto, 0.5, 1e12)
 
 
+def test_the_api_refuses_absurd_loads_payloads_and_drawing_factors(proto, centre):
+    """The same ranges as the CLI's at the API's own doors: a deflection under 1e300 N, a 1e12 kg
+    payload's frequencies, a drawn exaggeration of 1e300 are ImplausibleValueErrors naming the
+    argument, not pages of inf (and a load inside the range still computes)."""
+    from h4pin.io import viewer
+
+    res = h4pin.compliance(proto, centre)
+    with pytest.raises(limits.ImplausibleValueError, match=r"load: force F = 1e\+300 N .*\[-1e\+06, 1e\+06\] N"):
+        res.deflection(np.array([1e300, 0.0, 0.0]))
+    with pytest.raises(limits.ImplausibleValueError, match=r"load: torque T, t1, t2 = -1e\+09 N.m"):
+        res.deflection(np.r_[0.0, 0.0, 10.0, -1e9, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(res.deflection(np.array([1e5, 0.0, 0.0])), 1e5 * res.matrix[:, 0], rtol=1e-15)
+    with pytest.raises(limits.ImplausibleValueError, match=r"payload mass = 1e\+12 kg"):
+        h4pin.modes(proto, centre, h4pin.Payload(1e12))
+    for kwargs, word in (({"exaggeration": 1e300}, "exaggeration = 1e+300"), ({"scale": 1e300}, "scale = 1e+300"),
+                         ({"load": [1e300, 0.0, 0.0]}, "load: force F = 1e+300")):
+        with pytest.raises(limits.ImplausibleValueError, match=re.escape(word)):
+            viewer.show(proto, centre, **kwargs)  # refused before any server starts
+
+
 def test_a_spring_of_1e_300_is_refused_at_load_and_by_the_studies(proto, centre):
     """A robot cannot be built with a spring outside the ranges (load, URDF text, pickling all go
     through H4's constructor); the studies that take parameters instead of a robot check them."""
     from h4pin.studies import atlas, frequency
 
-    with pytest.raises(limits.ImplausibleValueError, match=r"springs: .*'kc' = 1e-300 N.m/rad .*\[1e-06, 1e\+15\]"):
+    with pytest.raises(limits.ImplausibleValueError, match=r"springs: .*'kc' = 1e-300 N.m/rad .*\[1e-06, 1e\+25\]"):
         h4pin.load("prototype", springs={"kc": 1e-300})
     with pytest.raises(limits.ImplausibleValueError, match=r"'E' = 1e\+300 Pa"):
         h4pin.load("prototype", springs={"E": 1e300})
     with pytest.raises(limits.ImplausibleValueError, match="'kc' = 1e-300"):
         h4pin.load(proto.urdf.replace('kc="7400.0"', 'kc="1e-300"', 1))
     soft = h4pin.H4Params(kc=1e-300)
-    with pytest.raises(limits.ImplausibleValueError, match=r"'kc' = 1e-300 N.m/rad .*\[1e-06, 1e\+15\]"):
+    with pytest.raises(limits.ImplausibleValueError, match=r"'kc' = 1e-300 N.m/rad .*\[1e-06, 1e\+25\]"):
         limits.check_springs(soft)
     for call in (lambda: frequency.first_frequency(soft, centre),
                  lambda: atlas.atlas(soft, [0.0], [0.0], [centre[2]], progress=False)):

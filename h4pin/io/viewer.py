@@ -45,6 +45,7 @@ import pinocchio as pin
 from pinocchio.visualize import MeshcatVisualizer
 from tqdm import tqdm
 
+from h4pin import limits
 from h4pin.errors import ParameterError
 from h4pin.files import write_text
 from h4pin.io import meshcat_server
@@ -188,6 +189,8 @@ class Scene:
             The scale used (mm per um/N).
         """
         x = geometry.as_poses(pose)
+        if scale is not None:
+            limits.check_range("scale", scale, "scale")
         k = compliance(self.h4, x, model).matrix
         radii, axes = ellipsoid_axes(k[:3, :3])
         um = radii * 1e6
@@ -223,6 +226,8 @@ class Scene:
         """
         x = geometry.as_poses(pose)
         g = as_load(load)
+        if exaggeration is not None:
+            limits.check_range("exaggeration", exaggeration, "exaggeration")
         dtp, _ = deflection(self.h4, x, g, model)
         if exaggeration is None:
             exaggeration = _nice(GHOST_SIZE / max(np.linalg.norm(dtp[:3]), 1e-12))
@@ -488,6 +493,9 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
     compliance(h4, x, model)  # fail before starting a server
     if load is not None:
         as_load(load)
+    for name, value in (("scale", scale), ("exaggeration", exaggeration)):
+        if value is not None:
+            limits.check_range(name, value, name)
     scene = Scene(h4, vis, host)
     try:
         scene.pose(x)

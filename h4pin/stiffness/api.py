@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from h4pin import limits
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.errors import LoadError, ParameterError
 from h4pin.inputs import check_choice, check_flag, check_instance, describe, real_array
@@ -210,6 +211,8 @@ def as_load(load: Any) -> np.ndarray:
     if g.shape != (8,) or not np.all(np.isfinite(g)):
         raise LoadError(f"load must be a finite force F (3,) in N or Gamma_ext = [F, T, t1, t2] (8,), "
                         f"got {load!r}")
+    limits.check_range("load: force F", g[:3], "load")  # h4pin.limits.RANGES (1e300 N is a typo, not a load)
+    limits.check_range("load: torque T, t1, t2", g[3:], "torque")
     return g
 
 
