@@ -282,53 +282,68 @@ def _tridiagonal(H, n, d, e):
 
 @njit(cache=True, nogil=True)
 def _ql(d, e, n):
-    """All eigenvalues (into d) of the tridiagonal (d, e[1:n]) by the implicit QL method with
-    Wilkinson shifts (EISPACK tql1; ``sqrt(f^2 + g^2)`` where tql1 has ``hypot``, which guards
-    against overflow at three times the cost: the entries here are compliances times masses)."""
+    """All eigenvalues (into d, ascending) of the tridiagonal (d, e[1:n]) by the rational QL method
+    (EISPACK tqlrat: the Pal-Walker-Kahan iteration on the squared sub-diagonal, no square root in
+    its inner loop; about twice as fast as tql1 here). e is overwritten with the squares."""
     for i in range(1, n):
-        e[i - 1] = e[i]
+        e[i - 1] = e[i] * e[i]
     e[n - 1] = 0.0
-    for m0 in range(n):
-        it = 0
-        while True:
-            m = m0
-            while m < n - 1:
-                dd = abs(d[m]) + abs(d[m + 1])
-                if abs(e[m]) <= 2.220446049250313e-16 * dd:
+    f = 0.0
+    t = 0.0
+    b = 0.0
+    c = 0.0
+    for l in range(n):
+        j = 0
+        h = abs(d[l]) + math.sqrt(e[l])
+        if t <= h:
+            t = h
+            b = 2.220446049250313e-16 * t
+            c = b * b
+        m = l
+        while m < n - 1 and e[m] > c:  # a small squared sub-diagonal element (e[n - 1] is 0)
+            m += 1
+        if m != l:
+            while True:
+                if j == 30:
                     break
-                m += 1
-            if m == m0:
-                break
-            it += 1
-            if it > 60:
-                break
-            g = (d[m0 + 1] - d[m0]) / (2.0 * e[m0])
-            r = math.sqrt(g * g + 1.0)
-            g = d[m] - d[m0] + e[m0] / (g + (r if g >= 0.0 else -r))
-            s, c, p = 1.0, 1.0, 0.0
-            i = m - 1
-            while i >= m0:
-                f = s * e[i]
-                b = c * e[i]
-                r = math.sqrt(f * f + g * g)
-                e[i + 1] = r
-                if r == 0.0:
-                    d[i + 1] -= p
-                    e[m] = 0.0
+                j += 1
+                s = math.sqrt(e[l])  # the shift
+                g = d[l]
+                p = (d[l + 1] - g) / (2.0 * s)
+                r = math.sqrt(p * p + 1.0)
+                d[l] = s / (p + (r if p >= 0.0 else -r))
+                h = g - d[l]
+                for i in range(l + 1, n):
+                    d[i] -= h
+                f += h
+                g = d[m]  # the rational QL transformation
+                if g == 0.0:
+                    g = b
+                h = g
+                s = 0.0
+                for i in range(m - 1, l - 1, -1):
+                    p = g * h
+                    r = p + e[i]
+                    e[i + 1] = s * r
+                    s = e[i] / r
+                    d[i + 1] = h + s * (h + d[i])
+                    g = d[i] - e[i] / g
+                    if g == 0.0:
+                        g = b
+                    h = g * p / r
+                e[l] = s * g
+                d[l] = h
+                if h == 0.0 or abs(e[l]) <= abs(c / h):  # converged (guarded against underflow)
                     break
-                s = f / r
-                c = g / r
-                g = d[i + 1] - p
-                r = (d[i] - g) * s + 2.0 * c * b
-                p = s * r
-                d[i + 1] = g + p
-                g = c * r - b
-                i -= 1
-            if r == 0.0 and i >= m0:
-                continue
-            d[m0] -= p
-            e[m0] = g
-            e[m] = 0.0
+                e[l] = h * e[l]
+                if e[l] == 0.0:
+                    break
+        p = d[l] + f
+        i = l  # insert p among the converged ones, ascending
+        while i > 0 and p < d[i - 1]:
+            d[i] = d[i - 1]
+            i -= 1
+        d[i] = p
 
 
 @njit(cache=True, nogil=True)
@@ -629,8 +644,7 @@ def _eigenvalues(ny, ns, W, freq):  # pragma: no cover - compiled
     d = W[16][:ns]
     e = W[17][:ns]
     _tridiagonal(H, ns, d, e)
-    _ql(d, e, ns)
-    d.sort()  # in place: mu, largest first, is d[ns - 1 - a]
+    _ql(d, e, ns)  # ascending: mu, largest first, is d[ns - 1 - a]
     top = d[ns - 1]
     massive = 0
     for a in range(ns):
