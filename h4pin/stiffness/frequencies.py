@@ -20,7 +20,7 @@ M1^-1 M2 M3, the torsion vectors); its effect on its own body is a unit rotation
 at its site. The bodies' twists follow from the plate's, the forearms' and the universal joints'
 kinematics (a 3 x 3 solve per bar for its two universal-joint rates and its length rate). Per
 pose: the pipeline's one call, then :func:`_pose_frequencies` (H of 16 x 16 without elements,
-Householder tridiagonalisation and implicit QL). Robots whose parallelograms are exact, as the
+Householder tridiagonalisation and rational QL). Robots whose parallelograms are exact, as the
 pipeline; :func:`h4pin.modes` takes the Pinocchio route for the others.
 """
 
