@@ -162,8 +162,8 @@ USER_FILES = {".txt": b"a user's own notes\n", ".png": b"\x89PNG\r\n\x1a\nnot h4
               ".nc": b"\x89HDF\r\n\x1a\nnot h4pin's"}
 
 
-@pytest.mark.parametrize("command", [c if c in ("export", "view") else pytest.param(c, marks=pytest.mark.slow)
-                                     for c in WRITERS])  # the slow ones spawn a study each (tens of s cold)
+@pytest.mark.parametrize("command", [c if c == "export" else pytest.param(c, marks=pytest.mark.slow)
+                                     for c in WRITERS])  # the slow ones spawn a study or a viewer (9-60 s)
 def test_a_user_file_is_kept_unless_overwrite(command, tmp_path):
     """An existing file h4pin did not write: exit 2, one line naming it, the file byte for byte as
     it was; --overwrite replaces it; a file h4pin wrote is replaced without --overwrite."""

@@ -246,6 +246,7 @@ def test_bad_input_is_a_typed_error(h4, kwargs, error, match):
         cy.run(h4, **kwargs)
 
 
+@pytest.mark.slow  # a whole cycle command in a subprocess, 7 s
 def test_cli(tmp_path):
     def run(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run([sys.executable, "-m", "h4pin.cli", "cycle", *args], capture_output=True, text=True,

@@ -53,6 +53,7 @@ def test_pareto_front_is_the_non_dominated_designs():
     assert par["frequency"].shape == (n,)
 
 
+@pytest.mark.slow  # a whole command in a subprocess, 8 s; the modes CLI's errors stay in the default run
 def test_cli_prints_the_modes_and_writes_the_map(tmp_path, proto, centre):
     import subprocess
     import sys

@@ -181,6 +181,7 @@ def test_every_cited_h4pin_name_exists():
     assert not missing, f"cited but not defined: {missing}"
 
 
+@pytest.mark.slow  # a copied install in a private mount namespace, 7 s
 def test_a_read_only_install_imports_and_computes(tmp_path):
     """With the package folder and $HOME read-only (a system or container install), h4pin imports
     and computes: numba's cache goes to a per-user temporary folder (read-only bind mounts in a
