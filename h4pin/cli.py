@@ -492,9 +492,12 @@ def cycle(
     samples: int = typer.Option(400, help="time steps over the cycle"),
     model: Model = typer.Option(CYCLE_MODEL, help="'consistent' (symmetric K; the cycle's dynamics need it) "
                                 "or 'paper' (eq. 30 as printed)"),
+    elastic: bool = typer.Option(False, "--elastic", help="also the elastic robot's own answer: the whole robot's "
+                                 "loads, its vibration along the cycle and after the stop"),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
 ) -> None:
-    """Tool deflection along the standard pick-and-place cycle (closed-loop inverse dynamics, quasi-static)."""
+    """Tool deflection along the standard pick-and-place cycle (closed-loop inverse dynamics, quasi-static;
+    with --elastic, the elastic robot's dynamics too)."""
     from h4pin import limits
     from h4pin.files import check_output, check_replace
     from h4pin.studies import cycle as cycle_module
@@ -514,6 +517,11 @@ def cycle(
     h4 = load_robot(variant, urdf)
     results = [cycle_module.run(h4, time, p, samples=samples, model=model, heading=heading) for p in payload]
     typer.echo(cycle_module.report(results))
+    if elastic:
+        from h4pin.studies import elastic_cycle
+
+        typer.echo("\n" + elastic_cycle.report([elastic_cycle.run(h4, time, p, samples=samples, heading=heading)
+                                                for p in payload]))
     if figure is not None:
         wrote(cycle_module.write_figure(results[-1], figure, results[:-1]))
 

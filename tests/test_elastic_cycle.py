@@ -165,3 +165,25 @@ def test_the_elastic_mujoco_model_driven_by_servos_agrees():
 def test_bad_input_is_a_typed_error(h4, kwargs, match):
     with pytest.raises(ParameterError, match=match):
         ec.run(h4, 0.5, **kwargs)
+
+
+def test_cli_prints_the_elastic_cycle(h4, monkeypatch, capsys):
+    """``h4pin cycle --elastic``: the rigid table, then one column per payload of the elastic
+    robot's own answer, the numbers of :func:`h4pin.studies.elastic_cycle.run` with the same
+    arguments; the whole robot's quasi-static peak exceeds the plate-only one (the legs' inertia
+    and weight load the servos too)."""
+    from conftest import run_cli_in_process
+
+    code, out, err = run_cli_in_process(["cycle", "--samples", "40", "--payload", "0", "--payload", "0.5",
+                                         "--elastic"], monkeypatch, capsys)
+    assert code == 0, err
+    table = out[out.index("The elastic robot"):]
+    rows = {line[:40].strip(): line[40:].split() for line in table.splitlines()[3:]}
+    runs = [ec.run(h4, 0.5, m, samples=40) for m in (0.0, 0.5)]
+    assert rows["payload [kg]"] == ["0", "0.5"]
+    for got, r in zip(rows["peak tool |d|, quasi-static [um]"], runs, strict=True):
+        assert float(got) == pytest.approx(r.peak_quasi_static * 1e6, abs=0.051)
+    for got, r in zip(rows["peak tool |d|, dynamic [um]"], runs, strict=True):
+        assert float(got) == pytest.approx(r.peak_dynamic * 1e6, abs=0.051)
+    rigid_peaks = [rigid.run(h4, 0.5, m, samples=40).peak_norm for m in (0.0, 0.5)]
+    assert all(r.peak_quasi_static > p for r, p in zip(runs, rigid_peaks, strict=True))

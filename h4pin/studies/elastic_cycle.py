@@ -298,4 +298,22 @@ def chart(h4: H4, periods: Sequence[float] = (0.3, 0.4, 0.5, 0.75, 1.0, 1.5, 2.0
     return out
 
 
-__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "Springs", "chart", "run", "springs_along"]
+def report(results: ElasticCycle | Sequence[ElasticCycle]) -> str:
+    """Text table of :func:`run`'s results, one column each: the peak tool displacement,
+    quasi-static and dynamic, the largest residual after the stop and the settling time to
+    :data:`BAND` (``h4pin cycle --elastic``)."""
+    rs = [results] if isinstance(results, ElasticCycle) else list(results)
+    settle = ["inf" if math.isinf(r.settling_time) else f"{r.settling_time:.2f}" for r in rs]
+    rows = [("payload [kg]", [f"{r.payload:g}" for r in rs]),
+            ("peak tool |d|, quasi-static [um]", [f"{r.peak_quasi_static * 1e6:.1f}" for r in rs]),
+            ("peak tool |d|, dynamic [um]", [f"{r.peak_dynamic * 1e6:.1f}" for r in rs]),
+            ("largest residual after the stop [um]", [f"{r.residual.max() * 1e6:.1f}" for r in rs]),
+            (f"settling to {BAND * 1e6:.0f} um after the stop [s]", settle)]
+    lines = ["The elastic robot along the same cycle (every compliance a spring, the whole robot's "
+             "inertia and weight, actuators", f"locked at the commanded motion; damping {rs[0].damping:g} s, "
+             f"the stop followed for {rs[0].t[-1] - rs[0].t[rs[0].stop]:.2f} s; h4pin.studies.elastic_cycle):", ""]
+    lines += [f"{name:<40}" + "".join(f"{x:>14}" for x in cells) for name, cells in rows]
+    return "\n".join(lines)
+
+
+__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "Springs", "chart", "report", "run", "springs_along"]
