@@ -339,8 +339,6 @@ def _check_size(pose: Any, keep: bool, active: Elements | None) -> None:
     shape = getattr(pose, "shape", None)
     if not isinstance(shape, tuple) or len(shape) != 2 or shape[0] < 100_000:
         return
-    from h4pin import limits
-
     n = int(shape[0])
     per = limits.COMPLIANCE_BYTES_PER_POSE + (limits.COMPLIANCE_BYTES_PER_TERM * len(_names(active)) if keep else 0)
     limits.check_size(f"h4pin.compliance: {n:,} poses", n * per, n / limits.COMPLIANCE_POSES_PER_S,

@@ -43,7 +43,7 @@ def first_frequency(robot: Any, poses: np.ndarray, payload: Payload | None = Non
     Returns:
         (frequency (N,) Hz, NaN where status is not 0; status (N,) int8, :mod:`h4pin.verdicts`).
     """
-    _check_inputs(robot, payload)
+    limits.check_springs(robot, "robot")  # a robot given as parameters (an H4 checked its own); the payload: modes
     x = as_poses(poses)
     x = x[None] if x.ndim == 1 else x
     check_size(len(x))
@@ -66,13 +66,6 @@ def check_size(n: int, what: str = "first natural frequency") -> None:
     n = limits.count(n)
     limits.check_size(f"{what}: {n:,} poses", n * limits.MODES_BYTES_PER_POSE, n / limits.MODES_POSES_PER_S,
                       "use fewer poses (a coarser grid)")
-
-
-def _check_inputs(robot: Any, payload: Any) -> None:
-    """The payload's mass and the robot's springs within their plausible ranges (:mod:`h4pin.limits`)."""
-    if isinstance(payload, Payload):
-        limits.check_range("payload", payload.mass, "payload")
-    limits.check_springs(robot, "robot")
 
 
 def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float = 0.0,

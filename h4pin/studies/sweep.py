@@ -169,7 +169,7 @@ def check_size(spec: Spec) -> None:
         h4pin.limits.TooLargeError: over the limit (a :class:`h4pin.ParameterError`).
     """
     n = limits.count(spec.n_designs)
-    need = n * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) * 700
+    need = n * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) * limits.COMPLIANCE_BYTES_PER_POSE
     rate = FREQUENCY_DESIGNS_PER_S if spec.frequency else DESIGNS_PER_S
     limits.check_size(f"sweep: {n:,} designs", need, n / rate, "use fewer designs (--designs)")
 
