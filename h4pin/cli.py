@@ -349,23 +349,29 @@ def export(
     urdf: Path | None = typer.Option(None, help=URDF),
     elastic: bool = typer.Option(False, "--elastic", help="the elastic robot: every compliance a spring joint, "
                                  "actuators locked at the centre pose (h4pin.elastic_model)"),
+    servo: bool = typer.Option(False, "--servo", help="with --elastic: the actuators kept and driven by position "
+                               "servos (ctrl: 4 angles in rad, then 4 rates in rad/s), a model that can follow a "
+                               "motion"),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
     mjcf: Path | None = typer.Option(None, "--mjcf", hidden=True, help="old name of --out"),
 ) -> None:
     """Export the robot for another tool: --out PATH writes a MuJoCo model (8 closures, 4 motors;
-    with --elastic, the compliances as spring joints and the actuators locked)."""
+    with --elastic, the compliances as spring joints and the actuators locked, or with --servo
+    driven by position servos)."""
     from h4pin.files import check_output, check_replace
     from h4pin.io.mjcf import write_mjcf
 
     out, out_name = renamed(out, mjcf, "--mjcf")
     if out is None:
         fail("Missing option '--out'.")
+    if servo and not elastic:
+        fail("--servo needs --elastic (only the elastic robot has servos)")
     check_output(out, out_name)
     check_replace(out, out_name, overwrite)
     warn_renamed()
     h4 = load_robot(variant, urdf)
     try:
-        wrote(write_mjcf(h4, out, elastic=elastic))
+        wrote(write_mjcf(h4, out, elastic=elastic, servo=servo))
     except OSError as exc:
         fail(f"cannot write {out}: {exc.strerror or exc}")
 

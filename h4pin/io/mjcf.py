@@ -66,6 +66,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.errors import ParameterError
 from h4pin.files import write_text
 
@@ -327,7 +328,7 @@ def spec(h4: Any, name: str | None = None, q: np.ndarray | None = None) -> Any:
 
 def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, damping: float = DAMPING,
                  solref: Any = ELASTIC_SOLREF, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP,
-                 servo: bool = False) -> Any:
+                 servo: bool = False, payload: float = 0.0) -> Any:
     """The elastic H4 (:func:`h4pin.elastic.elastic_model`) as a ``mujoco.MjSpec`` (not compiled).
 
     The robot of :func:`spec`, with every virtual elastic joint of the elastic model as a MuJoCo
@@ -369,7 +370,10 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
             forearm's bending, which then has no joint of its own), and a ``velocity``-type
             ``<joint>_damper`` (ctrl: the angle's rate, rad/s) of gain ``damping * stiffness``:
             the same spring and damping, on the error to a commanded motion. The keyframe's
-            controls hold ``q``. For driving a motion (``tests/test_elastic_cycle.py``).
+            controls hold ``q``. For driving a motion (``h4pin export --elastic --servo``,
+            :func:`h4pin.studies.elastic_cycle.mujoco_cycle`).
+        payload: kg, a point mass at D (a body ``payload`` on the central bar, no inertia of its
+            own), as the studies' ``payload``; 0: none.
 
     Raises:
         MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO_ELASTIC`.
@@ -383,9 +387,15 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
         raise ParameterError(f"damping: must be finite and >= 0 (s), got {damping!r}")
     if not (np.isfinite(timestep) and timestep > 0):
         raise ParameterError(f"timestep: must be finite and > 0 (s), got {timestep!r}")
+    payload = float(limits.check_range("payload", payload, "payload"))
     q = _closed(h4, q)
     plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep), bool(servo))
-    return _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
+    s = _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
+    if payload > 0:
+        site = s.site("D")
+        body = site.parent.add_body()
+        body.name, body.pos, body.mass, body.inertia, body.explicitinertial = "payload", site.pos, payload, [0.0] * 3, True
+    return s
 
 
 @dataclasses.dataclass
@@ -804,9 +814,11 @@ def _scene(model: pin.Model, s: Any, mujoco: Any, data: pin.Data) -> None:
     camera.fovy = 45.0
 
 
-def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, elastic: bool = False) -> str:
+def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, elastic: bool = False,
+            servo: bool = False) -> str:
     """MJCF text of ``h4``: :func:`spec` (``elastic=True``: :func:`elastic_spec` with its default
-    settings) compiled and written by MuJoCo (``MjSpec.to_xml``, every number to 17 significant
+    settings; ``servo=True`` with it: the actuators kept and driven by position servos, a file that
+    can follow a motion) compiled and written by MuJoCo (``MjSpec.to_xml``, every number to 17 significant
     digits), after two comment lines: the licence, and what wrote it (with the MuJoCo version, whose
     writer's layout can differ from another's).
 
@@ -815,13 +827,17 @@ def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, el
         ParameterError: as :func:`spec`.
     """
     mujoco = _mujoco()
-    s = elastic_spec(h4, name, q) if elastic else spec(h4, name, q)
+    if servo and not elastic:
+        raise ParameterError("servo: only the elastic robot has servos (elastic=True)")
+    s = elastic_spec(h4, name, q, servo=servo) if elastic else spec(h4, name, q)
     s.compile()
     with _full_precision(mujoco):
         text = s.to_xml()
     head, sep, rest = text.partition("\n")
+    held = ("the actuators driven by position servos (<joint>_servo: ctrl the angle in rad, gain the "
+            "actuator_i_elastic spring; <joint>_damper: ctrl the rate in rad/s)" if servo else "the actuators locked")
     what = (f"its URDF and h4pin.elastic_model: every compliance a spring joint (stiffness N.m/rad or N/m, "
-            f"springref 0, damping {DAMPING:g} s x stiffness), the actuators locked, the closures as connect "
+            f"springref 0, damping {DAMPING:g} s x stiffness), {held}, the closures as connect "
             "equalities, keyframe q0." if elastic else
             "its URDF: one body per link, the closures as connect equalities, torque motors (N.m), keyframe q0.")
     note = ("<!-- SPDX-License-Identifier: Apache-2.0 -->\n"
@@ -858,10 +874,11 @@ def qpos(h4: Any, q: np.ndarray) -> np.ndarray:
     return np.asarray(out, float)
 
 
-def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None, *, elastic: bool = False) -> Path:
+def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None, *, elastic: bool = False,
+               servo: bool = False) -> Path:
     """Write :func:`to_mjcf` to ``path`` atomically (a temporary file renamed), mode 0644. The model
     is named ``name``, else after the file (its stem); ``elastic=True`` writes the elastic robot
-    (:func:`elastic_spec`).
+    (:func:`elastic_spec`), with ``servo=True`` its actuators driven by position servos.
 
     Raises:
         MissingExtraError: MuJoCo is not installed.
@@ -873,7 +890,7 @@ def write_mjcf(h4: Any, path: str | os.PathLike[str], name: str | None = None, *
         raise IsADirectoryError(f"path: {path} is a folder")
     if not path.parent.is_dir():
         raise FileNotFoundError(f"path: no folder {path.parent}")
-    return write_text(path, to_mjcf(h4, name or path.stem, elastic=elastic))
+    return write_text(path, to_mjcf(h4, name or path.stem, elastic=elastic, servo=servo))
 
 
 __all__ = ["ARMATURE_STEPS", "CAMERA", "CHAIN_MASS", "DAMPING", "ELASTIC_SOLIMP", "ELASTIC_SOLREF", "ELASTIC_TIMESTEP",

@@ -437,17 +437,21 @@ def samples_along(h4: H4, model: pin.Model, cycle: AdeptCycle, t: np.ndarray) ->
 
 
 def newmark(mass: np.ndarray, stiffness: np.ndarray, load: np.ndarray, dt: float, damping: float,
-            s0: np.ndarray | None = None, substeps: int = 4) -> np.ndarray:
-    """(N, n) the response of ``M(t) s'' + damping K(t) s' + K(t) s = f(t)`` at N equal steps
-    ``dt`` of the sampled mass (N, n, n), stiffness (N, n, n), or (n,) for a constant diagonal
-    one, and load (N, n), by Newmark's average acceleration (unconditionally stable; ``substeps``
-    steps per sample, M, K and f linear in between), from rest at ``s0`` (default: the static
-    answer of the first sample). Coordinates that move no mass follow their load through the
-    damping (a first-order lag)."""
+            s0: np.ndarray | None = None, substeps: int = 4, *, velocity: np.ndarray | None = None,
+            extra: np.ndarray | None = None) -> np.ndarray:
+    """(N, n) the response of ``M(t) s'' + (damping K(t) + G(t)) s' + (K(t) + E(t)) s = f(t)`` at N
+    equal steps ``dt`` of the sampled mass (N, n, n), stiffness K (N, n, n), or (n,) for a constant
+    diagonal one, and load (N, n), by Newmark's average acceleration (unconditionally stable;
+    ``substeps`` steps per sample, every matrix and f linear in between), from rest at ``s0``
+    (default: the static answer of the first sample). ``velocity`` G and ``extra`` E (N, n, n),
+    default 0: velocity-dependent and further position-dependent terms, not damped. Coordinates
+    that move no mass follow their load through the damping (a first-order lag)."""
     beta, gamma = 0.25, 0.5
     h = dt / substeps
     diagonal = np.ndim(stiffness) == 1
-    stiff = (lambda n: np.diag(stiffness)) if diagonal else (lambda n: stiffness[n])
+    base = (lambda n: np.diag(stiffness)) if diagonal else (lambda n: stiffness[n])
+    stiff = base if extra is None else (lambda n: base(n) + extra[n])
+    gyro = (lambda n: 0.0) if velocity is None else (lambda n: velocity[n])
     s = np.linalg.solve(stiff(0), load[0]) if s0 is None else np.array(s0, dtype=float)
     v = np.zeros_like(s)
     acc = np.linalg.pinv(mass[0]) @ (load[0] - stiff(0) @ s)  # at rest: M a = f - K s (0 at equilibrium)
@@ -455,12 +459,13 @@ def newmark(mass: np.ndarray, stiffness: np.ndarray, load: np.ndarray, dt: float
     out[0] = s
     for n in range(len(load) - 1):
         k0, k1 = stiff(n), stiff(n + 1)
+        c0, c1 = damping * base(n) + gyro(n), damping * base(n + 1) + gyro(n + 1)
         for j in range(1, substeps + 1):
             w = j / substeps
             mm = (1 - w) * mass[n] + w * mass[n + 1]
             kk = (1 - w) * k0 + w * k1
+            cc = (1 - w) * c0 + w * c1
             ff = (1 - w) * load[n] + w * load[n + 1]
-            cc = damping * kk
             rhs = ff + mm @ (s / (beta * h * h) + v / (beta * h) + (0.5 / beta - 1.0) * acc) \
                 + cc @ (gamma * s / (beta * h) + (gamma / beta - 1.0) * v + h * (0.5 * gamma / beta - 1.0) * acc)
             s_new = np.linalg.solve(kk + gamma / (beta * h) * cc + mm / (beta * h * h), rhs)
