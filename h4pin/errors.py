@@ -59,3 +59,9 @@ class InterferenceError(UnreachablePoseError):
 
 class URDFNotFoundError(H4Error, FileNotFoundError):
     """No URDF file at the given path."""
+
+
+class MechanismWarning(UserWarning):
+    """A closed-loop robot was read or assembled with a repair the user should know of: a sidecar
+    entry the model lacks (ignored, as Gepetto's loader does), motors that had to move for the
+    loops to close."""

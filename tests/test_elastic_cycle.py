@@ -82,6 +82,57 @@ def test_the_legs_share_at_rest_is_their_weight(h4, cycle):
     np.testing.assert_allclose(share[act], -hold, rtol=1e-6, atol=1e-8)
 
 
+def test_vector_coordinates_give_the_same_mass_and_load(h4, cycle):
+    """The plate as three slides and three hinges (the study's vector coordinates for the motion
+    terms) moves the same bodies: M_s = T^T M T and the springs' loads T^T f from Pinocchio's crba
+    and rnea of that model equal those of the elastic model's free flyer (springs_along), to
+    1e-12, at a moving sample; at rest G is 0 and H (gravity's alone, the Hessian of a potential
+    on the admissible motions) symmetric."""
+    from h4pin.elastic.h4 import elastic_model
+    from h4pin.elastic.modal import mass_model
+
+    t = np.array([0.0, 0.13])
+    sp = ec.springs_along(h4, cycle, t)
+    em = elastic_model(h4)
+    mm = mass_model(em)
+    co = ec._Coordinates(mm, em.constraint_models)
+    rows = rigid.samples_along(h4, rigid.payload_model(h4, 0.0), cycle, t)
+    vmap = ec._velocity_map(h4.model, mm)
+    pose = cycle.sample(t)[0]
+    for i in range(len(t)):
+        q = em.configuration(pose[i])
+        v, a = np.zeros(mm.nv), np.zeros(mm.nv)
+        v[vmap], a[vmap] = rows[i].v, rows[i].a
+        qv, jac = co.configuration(q)
+        d = co.model.createData()
+        pin.forwardKinematics(co.model, d, qv, co.tangent(v, jac), np.zeros(co.model.nv))
+        bias = np.zeros(mm.nv)
+        for (_, iv, last), _j in zip(co.free, jac, strict=True):
+            bias[iv:iv + 6] = d.a[last].vector
+        vv, av = co.tangent(v, jac), co.tangent(a - bias, jac)
+        mass = pin.crba(co.model, d, qv)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        tau = pin.rnea(co.model, d, qv, vv, av)
+        T = _spring_basis(h4, em, mm, q, sp.names)
+        tvec = co.tangent(T, jac)
+        np.testing.assert_allclose(tvec.T @ mass @ tvec, sp.mass[i], rtol=0, atol=1e-12 * np.abs(sp.mass[i]).max())
+        np.testing.assert_allclose(-tvec.T @ tau, sp.load[i], rtol=0, atol=1e-12 * np.abs(sp.load[i]).max())
+    assert np.abs(sp.velocity[0]).max() < 1e-6 * np.abs(sp.velocity[1]).max()
+    np.testing.assert_allclose(sp.stiffness[0], sp.stiffness[0].T, rtol=0, atol=1e-6 * np.abs(sp.stiffness[0]).max())
+
+
+def _spring_basis(h4, em, mm, q, names):
+    """T at q: the admissible motions with the actuators locked, normalised on the springs."""
+    from h4pin.elastic import engine
+    from h4pin.elastic.modal import _admissible
+
+    d = mm.createData()
+    pin.computeJointJacobians(mm, d, q)
+    b = _admissible(mm, em.constraint_models, q, em.locked, engine.stiffness_vector(mm, em.stiffness), d)
+    dofs = [mm.joints[mm.getJointId(n)].idx_v for n in names]
+    return b @ np.linalg.inv(b[dofs])
+
+
 def test_newmark_of_one_spring_is_the_textbook_step_response():
     """m x'' + a k x' + k x = F from rest at 0: x = F/k (1 - exp(-z w t)(cos wd t + z/sqrt(1-z^2)
     sin wd t)), w = sqrt(k/m), z = a w / 2; and a massless spring is the first-order lag."""

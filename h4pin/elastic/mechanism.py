@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -37,7 +38,7 @@ from h4pin._compat import constraint_calc
 from h4pin.elastic import engine
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
-from h4pin.errors import MalformedURDFError, ParameterError
+from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError
 from h4pin.kinematics.pinocchio import model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
@@ -76,6 +77,19 @@ def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...
     return tuple(out)
 
 
+def _urdf_ranges(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) (nq,): the model's position limits of one-coordinate joints where
+    lower < upper (a URDF without ``lower``/``upper`` gives 0..0: no range), nan elsewhere."""
+    lo, hi = np.full(model.nq, np.nan), np.full(model.nq, np.nan)
+    for j in range(1, model.njoints):
+        jm = model.joints[j]
+        if jm.nq == 1:
+            a, b = model.lowerPositionLimit[jm.idx_q], model.upperPositionLimit[jm.idx_q]
+            if np.isfinite(a) and np.isfinite(b) and a < b and max(abs(a), abs(b)) < 1e100:
+                lo[jm.idx_q], hi[jm.idx_q] = a, b
+    return lo, hi
+
+
 def _closures(model: pin.Model, constraint_models: Iterable[Any]) -> Any:
     """The closures as a ``StdVec_RigidConstraintModel``, each named (``closure_<i>`` when unnamed)."""
     out = pin.StdVec_RigidConstraintModel()
@@ -108,13 +122,24 @@ class Mechanism:
             ``closure_<i>``, 1-based).
         actuated: the motor joints, names or Pinocchio joint ids.
         name: for messages (default the model's name).
+        reference: the file's reference configuration, where :meth:`assemble` starts (default
+            Pinocchio's neutral one).
+        ranges: (lower, upper) (nq,) each, nan where a coordinate has no range (default: the
+            model's limits of one-coordinate joints where lower < upper).
+        springs: the file's joint springs ``{joint: stiffness}`` (default none).
+
+    Attributes:
+        reference, ranges, springs: as given (read-only). free_flyers: the free-flyer joints on
+            the universe (a legged robot's root), held by :meth:`compliance` and :meth:`modes`
+            unless freed.
 
     Raises:
         ParameterError: not a ``pin.Model``, a closure of another kind, an unknown joint.
     """
 
     def __init__(self, model: pin.Model, constraint_models: Iterable[Any] = (), actuated: Iterable[Any] = (), *,
-                 name: str | None = None):
+                 name: str | None = None, reference: Any = None, ranges: tuple[Any, Any] | None = None,
+                 springs: Mapping[Any, Any] | None = None):
         if not isinstance(model, pin.Model):
             raise ParameterError(f"model: a pinocchio.Model, got {type(model).__name__}")
         model = pin.Model(model)
@@ -123,6 +148,23 @@ class Mechanism:
         object.__setattr__(self, "actuated", _names(model, actuated, "actuated"))
         object.__setattr__(self, "name", name or model.name or "mechanism")
         object.__setattr__(self, "_local", threading.local())
+        ref = pin.neutral(model) if reference is None else model_configuration(model, reference, "reference")
+        ref.setflags(write=False)
+        object.__setattr__(self, "reference", ref)
+        lo, hi = _urdf_ranges(model) if ranges is None else (np.array(r, dtype=float) for r in ranges)
+        if lo.shape != (model.nq,) or hi.shape != (model.nq,) or np.any(lo > hi):
+            raise ParameterError(f"ranges: (lower, upper), each ({model.nq},) with lower <= upper (nan: none)")
+        for r in (lo, hi):
+            r.setflags(write=False)
+        object.__setattr__(self, "ranges", (lo, hi))
+        stiff = {} if springs is None else dict(springs)
+        if stiff:
+            stiff = dict(zip(_names(model, list(stiff), "springs"), stiff.values(), strict=True))
+            engine.stiffness_vector(model, stiff)  # checked now
+        object.__setattr__(self, "springs", stiff)
+        roots = tuple(model.names[j] for j in range(1, model.njoints)
+                      if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer")
+        object.__setattr__(self, "free_flyers", roots)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"a Mechanism is immutable (cannot set {name!r})")
@@ -142,55 +184,34 @@ class Mechanism:
     # ------------------------------------------------------------------ readers
     @classmethod
     def from_urdf(cls, urdf_path: str | Path, sidecar: str | Path | None = None, *,
-                  actuated: Iterable[Any] | None = None) -> Mechanism:
-        """A URDF and its closed-loop sidecar (YAML: ``closed_loop``, ``type``, ``name_mot``;
-        default: the URDF's path with ``.yaml``; ``actuated`` overrides ``name_mot``).
+                  actuated: Iterable[Any] | None = None, free_flyer: bool = False) -> Mechanism:
+        """A URDF and its closed-loop sidecar (YAML: ``closed_loop``, ``type``, ``name_mot``,
+        ``joint_name``/``joint_type``; default: the URDF's path with ``.yaml``), as Gepetto's
+        loader builds them (:mod:`h4pin.elastic.sidecar`: the joint conversions applied before
+        the closures are built); ``actuated`` overrides ``name_mot``; ``free_flyer``: the root on
+        a free-flyer joint (legged robots; held in :meth:`compliance` and :meth:`modes` unless
+        freed). The reference configuration is Pinocchio's neutral one; a joint's range is the
+        URDF's ``lower``..``upper`` where they differ (URDF's default 0..0 states none).
 
         Raises:
             MissingExtraError: PyYAML is not installed. MalformedURDFError: the URDF does not
-            parse, the sidecar is not such a mapping or names a frame or joint the model lacks.
+            parse; the sidecar is not such a mapping, a key holds the wrong kind, or it names a
+            frame or motor the model lacks.
         """
-        from h4pin.extras import require
+        from h4pin.elastic import sidecar as sc
 
-        require("yaml", extra="interop", what="Mechanism.from_urdf")
-        import yaml
-
+        if not isinstance(free_flyer, bool):
+            raise ParameterError(f"free_flyer: True or False, got {free_flyer!r}")
         urdf_path = Path(urdf_path)
-        side = urdf_path.with_suffix(".yaml") if sidecar is None else Path(sidecar)
+        side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
+        model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
+        motors = side.motors if actuated is None else actuated
         try:
-            model = pin.buildModelFromUrdf(str(urdf_path))
-        except (RuntimeError, ValueError, OSError) as exc:
-            raise MalformedURDFError(f"{urdf_path}: Pinocchio cannot read it ({exc})") from None
-        try:
-            content = yaml.safe_load(side.read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise MalformedURDFError(f"{side}: cannot read the sidecar ({exc})") from None
-        if not isinstance(content, dict) or not {"closed_loop", "type"} <= set(content):
-            raise MalformedURDFError(f"{side}: a closed-loop sidecar is a mapping with closed_loop and type")
-        pairs, kinds = list(content["closed_loop"]), list(content["type"])
-        if len(pairs) != len(kinds):
-            raise MalformedURDFError(f"{side}: {len(pairs)} closed_loop pairs but {len(kinds)} types")
-        cms = []
-        for pair, kind in zip(pairs, kinds, strict=True):
-            if not isinstance(pair, (list, tuple)) or len(pair) != 2:
-                raise MalformedURDFError(f"{side}: a closed_loop entry is a pair of frame names, got {pair!r}")
-            missing = [n for n in pair if not model.existFrame(str(n))]
-            if missing:
-                raise MalformedURDFError(f"{side}: no frame {', '.join(map(repr, missing))} in {urdf_path.name}")
-            if str(kind).upper() not in ("3D", "6D"):
-                raise MalformedURDFError(f"{side}: closure type {kind!r} (3D or 6D)")
-            f1, f2 = (model.frames[model.getFrameId(str(n))] for n in pair)
-            ctype = pin.ContactType.CONTACT_3D if str(kind).upper() == "3D" else pin.ContactType.CONTACT_6D
-            cm = pin.RigidConstraintModel(ctype, model, f1.parentJoint, f1.placement, f2.parentJoint, f2.placement,
-                                          pin.ReferenceFrame.LOCAL)
-            cm.name = f"{pair[0]}C{pair[1]}"
-            cms.append(cm)
-        motors = content.get("name_mot", []) if actuated is None else actuated
-        try:
-            names = _names(model, motors, f"{side}: name_mot")
+            names = _names(model, motors, f"{side.path}: name_mot")
         except ParameterError as exc:
             raise MalformedURDFError(str(exc)) from None
-        return cls(model, cms, names, name=model.name or urdf_path.stem)
+        ranges = _urdf_ranges(model)
+        return cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model), ranges=ranges)
 
     @classmethod
     def from_elastic(cls, em: Any) -> Mechanism:
@@ -253,38 +274,123 @@ class Mechanism:
     def assemble(self, q: Any = None, *, fixed: Iterable[Any] | None = None, tol: float = ASSEMBLY_TOL,
                  iterations: int = 100) -> np.ndarray:
         """A configuration with every closure closed (within ``tol`` m, and rad for 6-D
-        closures), by Gauss-Newton from ``q`` (default the neutral configuration) with the
-        joints ``fixed`` (default the actuated ones) held.
+        closures), from ``q`` (default :attr:`reference`, the file's) with the joints ``fixed``
+        (default the actuated ones) held, every other one-coordinate joint kept in its range.
+
+        The solver is a bounded trust-region least-squares (scipy's ``least_squares``, method
+        ``trf``) on the closures' residuals, then Gauss-Newton to ``tol``. When ``fixed`` is not
+        given and the loops cannot close with the motors held, the motors are freed too: the
+        configuration nearest the start that the solver reaches, with a
+        :class:`~h4pin.errors.MechanismWarning` saying how far each motor moved.
 
         Raises:
-            UnassembledError: it does not close (names the worst closure and its error).
-            ParameterError: a bad q or joint.
+            UnassembledError: it does not close (names the worst closure and its error), or a
+                held joint is outside its range (names it).
+            ParameterError: a bad q, joint, tol or iterations.
         """
-        model, d = self.model, self.data
-        q = pin.neutral(model) if q is None else self._q(q)
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not (0 < tol < math.inf):
+            raise ParameterError(f"tol: a finite tolerance > 0 (m, rad), got {tol!r}")
+        if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+            raise ParameterError(f"iterations: an integer >= 1, got {iterations!r}")
+        model = self.model
+        start = np.array(self.reference) if q is None else self._q(q)
         held = _names(model, self.actuated if fixed is None else fixed, "fixed")
+        self._check_ranges(start, held, "held")
+        try:
+            return self._close(start, held, float(tol), int(iterations))
+        except UnassembledError:
+            if fixed is not None or not held:
+                raise
+        out = self._close(start, (), float(tol), int(iterations))
+        moved = []
+        for n in held:
+            j = model.joints[model.getJointId(n)]
+            moved.append(f"{n} {float(np.linalg.norm(pin.difference(model, start, out)[j.idx_v:j.idx_v + j.nv])):.3g}")
+        warnings.warn(f"{self.name}: the loops do not close with the motors where the start holds them; assembled "
+                      f"with the motors free (moved by, rad or m: {', '.join(moved)})", MechanismWarning, stacklevel=2)
+        return out
+
+    def _check_ranges(self, q: np.ndarray, joints: Iterable[str], what: str) -> None:
+        lo, hi = self.ranges
+        for n in joints:
+            j = self.model.joints[self.model.getJointId(n)]
+            sl = slice(j.idx_q, j.idx_q + j.nq)
+            bad = (q[sl] < lo[sl] - 1e-12) | (q[sl] > hi[sl] + 1e-12)
+            if np.any(bad):
+                raise UnassembledError(f"{self.name}: {what} joint {n!r} is at {q[sl][bad][0]:.6g}, outside its range "
+                                       f"[{lo[sl][bad][0]:.6g}, {hi[sl][bad][0]:.6g}]")
+
+    def _close(self, start: np.ndarray, held: Sequence[str], tol: float, iterations: int) -> np.ndarray:
+        """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`)."""
+        from scipy.optimize import least_squares
+
+        model, d = self.model, self.data
         free = np.ones(model.nv, dtype=bool)
         for n in held:
             j = model.joints[model.getJointId(n)]
             free[j.idx_v:j.idx_v + j.nv] = False
-        worst = (math.inf, "")
-        for _ in range(iterations):
+        lo, hi = self.ranges
+        q0 = np.array(start)
+        lower, upper = np.full(model.nv, -np.inf), np.full(model.nv, np.inf)
+        for j in range(1, model.njoints):
+            jm = model.joints[j]
+            if jm.nq == 1 and jm.nv == 1 and free[jm.idx_v] and np.isfinite(lo[jm.idx_q]):
+                q0[jm.idx_q] = min(max(q0[jm.idx_q], lo[jm.idx_q]), hi[jm.idx_q])
+                lower[jm.idx_v], upper[jm.idx_v] = lo[jm.idx_q] - q0[jm.idx_q], hi[jm.idx_q] - q0[jm.idx_q]
+        pin.forwardKinematics(model, d, q0)
+        scale = engine.length_scale(model, d)
+        embed = np.eye(model.nv)[:, free]
+
+        def at(x: np.ndarray) -> np.ndarray:
+            return pin.integrate(model, q0, embed @ x)
+
+        def residual(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, str]]:
             pin.computeJointJacobians(model, d, q)
             rows, res, worst = [], [], (0.0, "")
             for cm in self.constraint_models:
                 r, jac, err = _closure_step(model, d, cm)
-                rows.append(jac)
-                res.append(r)
+                w = np.ones(len(r))
+                w[:3] = 1.0 / scale
+                rows.append(jac * w[:, None])
+                res.append(r * w)
                 worst = max(worst, (err, cm.name))
+            return np.concatenate(res), np.vstack(rows), worst
+
+        if not self.constraint_models:
+            return q0
+        if free.any():
+            def fun(x: np.ndarray) -> np.ndarray:
+                return residual(at(x))[0]
+
+            def jac(x: np.ndarray) -> np.ndarray:
+                return residual(at(x))[1] @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed
+
+            x0 = np.zeros(int(free.sum()))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                sol = least_squares(fun, x0, jac=jac, bounds=(lower[free], upper[free]), method="trf",
+                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max(iterations, 20) * 5)
+            q = at(sol.x)
+        else:
+            q = q0
+        worst = (math.inf, "")
+        for _ in range(iterations):
+            r, jc, worst = residual(q)
             if worst[0] <= tol:
-                return q
-            jac = np.vstack(rows)[:, free]
+                break
+            if not free.any():
+                break
             step = np.zeros(model.nv)
-            step[free] = -np.linalg.lstsq(jac, np.concatenate(res), rcond=None)[0]
+            step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
             q = pin.integrate(model, q, step)
-        raise UnassembledError(f"{self.name}: the loops do not close from this start: closure {worst[1]!r} is off by "
-                               f"{worst[0]:.3e} (tolerance {tol:g}) after {iterations} steps; start nearer, or "
-                               "hold other joints (fixed=...)")
+        else:
+            worst = residual(q)[2]
+        if not worst[0] <= tol:
+            raise UnassembledError(f"{self.name}: the loops do not close from this start: closure {worst[1]!r} is off "
+                                   f"by {worst[0]:.3e} (tolerance {tol:g}); start nearer, or hold other joints "
+                                   "(fixed=...)")
+        self._check_ranges(q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
+        return q
 
     # ------------------------------------------------------------------ stiffness
     def _outputs(self, outputs: Sequence[Any]) -> list[Any]:

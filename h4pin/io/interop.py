@@ -332,10 +332,11 @@ def closed_loop(h4: H4, *, use_toolbox: bool | None = None) -> ClosedLoop:
 def closed_loop_from_sidecar(urdf_path: str | Path, sidecar_path: str | Path | None = None, *,
                              use_toolbox: bool | None = None) -> ClosedLoop:
     """A URDF and its Extended-URDF sidecar as the toolbox's loader builds them (``completeRobotLoader``
-    of example-parallel-robots, not on PyPI): Pinocchio's URDF parser (fixed base), each sidecar
-    pair of frames as a ``RigidConstraintModel`` (``CONTACT_3D`` for ``3D``, else ``CONTACT_6D``) between the
-    frames' parent joints at the frames' placements in the LOCAL frame, and the actuation model of
-    ``name_mot``. Joint replacement (``joint_name``/``joint_type``) is not supported.
+    of example-parallel-robots, not on PyPI), through h4pin's one sidecar reader
+    (:mod:`h4pin.elastic.sidecar`): Pinocchio's URDF parser (fixed base), the ``joint_name`` /
+    ``joint_type`` conversions, each sidecar pair of frames as a ``RigidConstraintModel``
+    (``CONTACT_3D`` for ``3D``, ``CONTACT_6D`` for ``6D``) between the frames' parent joints at the
+    frames' placements in the LOCAL frame, and the actuation model of ``name_mot``.
 
     Args:
         urdf_path: the URDF file.
@@ -344,32 +345,14 @@ def closed_loop_from_sidecar(urdf_path: str | Path, sidecar_path: str | Path | N
 
     Raises:
         MissingExtraError: PyYAML is not installed (the ``interop`` extra).
-        MalformedURDFError: the sidecar names a frame the model lacks, replaces joints, or is not
-            a mapping with ``closed_loop``, ``type``, ``name_mot``.
+        MalformedURDFError: as :func:`h4pin.elastic.sidecar.read` and :func:`~h4pin.elastic.sidecar.build`.
     """
-    require("yaml", extra="interop", what="closed_loop_from_sidecar")
-    import yaml
+    from h4pin.elastic import sidecar
 
     urdf_path = Path(urdf_path)
-    sidecar_path = urdf_path.with_suffix(".yaml") if sidecar_path is None else Path(sidecar_path)
-    content = yaml.safe_load(sidecar_path.read_text())
-    if not isinstance(content, dict) or not {"closed_loop", "type", "name_mot"} <= set(content):
-        raise MalformedURDFError(f"{sidecar_path}: an Extended-URDF sidecar needs closed_loop, type and name_mot")
-    if content.get("joint_name"):
-        raise MalformedURDFError(f"{sidecar_path}: joint replacement (joint_name) is not supported")
-    model = pin.buildModelFromUrdf(str(urdf_path))
-    cms = []
-    for pair, kind in zip(content["closed_loop"], content["type"], strict=True):
-        missing = [n for n in pair if not model.existFrame(n)]
-        if missing:
-            raise MalformedURDFError(f"{sidecar_path}: no frame {', '.join(map(repr, missing))} in {urdf_path.name}")
-        f1, f2 = (model.frames[model.getFrameId(n)] for n in pair)
-        ctype = pin.ContactType.CONTACT_3D if str(kind).upper() == "3D" else pin.ContactType.CONTACT_6D
-        cm = pin.RigidConstraintModel(ctype, model, f1.parentJoint, f1.placement, f2.parentJoint, f2.placement,
-                                      pin.ReferenceFrame.LOCAL)
-        cm.name = f"{pair[0]}C{pair[1]}"
-        cms.append(cm)
-    am, ad = _actuation(model, cms, list(content["name_mot"]), use_toolbox)
+    side = sidecar.read(urdf_path.with_suffix(".yaml") if sidecar_path is None else sidecar_path)
+    model, cms = sidecar.build(urdf_path, side)
+    am, ad = _actuation(model, cms, list(side.motors), use_toolbox)
     return ClosedLoop(model, model.createData(), cms, [cm.createData() for cm in cms], am, ad)
 
 

@@ -394,7 +394,8 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
     if payload > 0:
         site = s.site("D")
         body = site.parent.add_body()
-        body.name, body.pos, body.mass, body.inertia, body.explicitinertial = "payload", site.pos, payload, [0.0] * 3, True
+        body.name, body.pos, body.mass = "payload", site.pos, payload
+        body.inertia, body.explicitinertial = [0.0] * 3, True
     return s
 
 

@@ -507,7 +507,7 @@ def report(results: ElasticCycle | Sequence[ElasticCycle]) -> str:
     quasi-static and dynamic, the largest residual after the stop and the settling time to
     :data:`BAND` (``h4pin cycle --elastic``)."""
     rs = [results] if isinstance(results, ElasticCycle) else list(results)
-    settle = ["inf" if math.isinf(r.settling_time) else f"{r.settling_time:.2f}" for r in rs]
+    settle = [f"> {r.t[-1] - r.t[r.stop]:.2f}" if math.isinf(r.settling_time) else f"{r.settling_time:.2f}" for r in rs]
     rows = [("payload [kg]", [f"{r.payload:g}" for r in rs]),
             ("peak tool |d|, quasi-static [um]", [f"{r.peak_quasi_static * 1e6:.1f}" for r in rs]),
             ("peak tool |d|, dynamic [um]", [f"{r.peak_dynamic * 1e6:.1f}" for r in rs]),
@@ -520,5 +520,5 @@ def report(results: ElasticCycle | Sequence[ElasticCycle]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "MujocoCycle", "Springs", "chart", "mujoco_cycle", "report", "run",
-           "springs_along"]
+__all__ = ["BAND", "DAMPING", "HOLD", "ElasticCycle", "MujocoCycle", "Springs", "chart", "mujoco_cycle", "report",
+           "run", "springs_along"]
