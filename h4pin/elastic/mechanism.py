@@ -419,13 +419,31 @@ class Mechanism:
         if not isinstance(springs, Mapping) or not springs:
             raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
         names = _names(self.model, list(springs), "springs")
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
         return dict(zip(names, springs.values(), strict=True))
 
+    def _locked(self, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
+        if not isinstance(free_root, bool):
+            raise ParameterError(f"free_root: True or False, got {free_root!r}")
+        if isinstance(locked, (str, bytes)):
+            locked = [locked]
+        names = _names(self.model, locked, "locked")
+        both = sorted(set(names) & set(springs))
+        if both:
+            raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
+        if not free_root:
+            names = names + tuple(n for n in self.free_flyers if n not in names and n not in springs)
+        return names
+
     def compliance(self, q: Any, springs: Mapping[Any, Any], outputs: Sequence[Any],
-                   locked: Iterable[Any] = ()) -> np.ndarray:
+                   locked: Iterable[Any] = (), *, free_root: bool = False) -> np.ndarray:
         """The (6 n, 6 n) compliance of n output frames at an assembled q: force at each frame's
         origin and torque, world axes (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint:
-        stiffness}`` (N.m/rad, N/m), joints without a spring free, ``locked`` held
+        stiffness}`` (N.m/rad, N/m; a scalar for every coordinate of a multi-coordinate joint, or
+        one value each), joints without a spring free, ``locked`` held, and a free-flyer root
+        (:attr:`free_flyers`) held unless ``free_root`` or it has a spring
         (:func:`h4pin.elastic.engine.compliance_matrix`).
 
         Raises:
@@ -433,14 +451,16 @@ class Mechanism:
             UnassembledError: a closure does not hold at q (its name and error).
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
         """
+        stiff = self._springs(springs)
         return engine.compliance_matrix(self.model, self.constraint_models, self._q(q),
-                                 locked=_names(self.model, locked, "locked"), stiffness=self._springs(springs),
-                                 outputs=self._outputs(outputs), data=self.data)
+                                        locked=self._locked(locked, stiff, free_root), stiffness=stiff,
+                                        outputs=self._outputs(outputs), data=self.data)
 
     def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
-              payload: tuple[str, Any] | None = None) -> MechanismModes:
+              payload: tuple[str, Any] | None = None, free_root: bool = False) -> MechanismModes:
         """Undamped natural modes at an assembled q with the model's inertias, the springs and
-        the locked joints of :meth:`compliance`, and an optional ``payload``: ``(frame,
+        the locked joints of :meth:`compliance` (a free-flyer root held unless ``free_root``), and
+        an optional ``payload``: ``(frame,
         h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in the frame's axes).
         Massless directions are condensed statically (:func:`h4pin.elastic.modal.undamped_modes`).
 
@@ -451,7 +471,7 @@ class Mechanism:
 
         q = self._q(q)
         stiff = self._springs(springs)
-        lock = _names(self.model, locked, "locked")
+        lock = self._locked(locked, stiff, free_root)
         model, d = self.model, self.data
         k = engine.stiffness_vector(model, stiff)
         pin.computeJointJacobians(model, d, q)
