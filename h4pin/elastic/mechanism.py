@@ -60,7 +60,14 @@ class MechanismModes:
 
 
 def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
-    """Joint names from names or Pinocchio ids, each checked (a typed error naming it)."""
+    """Joint names from names or Pinocchio ids (one, or several), each checked (a typed error
+    naming it)."""
+    if isinstance(joints, (str, int, np.integer)):
+        joints = [joints]
+    try:
+        joints = list(joints)
+    except TypeError:
+        raise ParameterError(f"{what}: joint names or Pinocchio joint ids, got {joints!r}") from None
     out = []
     for j in joints:
         if isinstance(j, (int, np.integer)) and not isinstance(j, bool):
@@ -88,6 +95,14 @@ def _urdf_ranges(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
             if np.isfinite(a) and np.isfinite(b) and a < b and max(abs(a), abs(b)) < 1e100:
                 lo[jm.idx_q], hi[jm.idx_q] = a, b
     return lo, hi
+
+
+def _tied(model: pin.Model, constraint_models: Iterable[Any], root: int) -> bool:
+    """Whether a closure joins a body of joint ``root``'s subtree to a body outside it (a floating
+    plate closed on legs, as the H4's, is tied; a legged robot's free-flyer root, whose loops all
+    lie within its own subtree, is not)."""
+    inside = set(model.subtrees[root])
+    return any((cm.joint1_id in inside) != (cm.joint2_id in inside) for cm in constraint_models)
 
 
 def _closures(model: pin.Model, constraint_models: Iterable[Any]) -> Any:
@@ -130,8 +145,9 @@ class Mechanism:
 
     Attributes:
         reference, ranges, springs: as given (read-only). free_flyers: the free-flyer joints on
-            the universe (a legged robot's root), held by :meth:`compliance` and :meth:`modes`
-            unless freed.
+            the universe that no closure ties to the rest (a legged robot's root, whose loops all
+            lie within it; not a plate closed on legs), held by :meth:`compliance` and
+            :meth:`modes` unless freed.
 
     Raises:
         ParameterError: not a ``pin.Model``, a closure of another kind, an unknown joint.
@@ -163,7 +179,8 @@ class Mechanism:
             engine.stiffness_vector(model, stiff)  # checked now
         object.__setattr__(self, "springs", stiff)
         roots = tuple(model.names[j] for j in range(1, model.njoints)
-                      if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer")
+                      if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
+                      and not _tied(model, self.constraint_models, j))
         object.__setattr__(self, "free_flyers", roots)
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -396,6 +413,10 @@ class Mechanism:
     def _outputs(self, outputs: Sequence[Any]) -> list[Any]:
         if isinstance(outputs, (str, FrameOutput, JointOutput)):
             outputs = [outputs]
+        try:
+            outputs = list(outputs)
+        except TypeError:
+            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {outputs!r}") from None
         out = []
         for o in outputs:
             if isinstance(o, str):

@@ -196,8 +196,10 @@ def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked:
     cond = sv[0] / sv[-1] if len(sv) >= model.nv and sv[-1] > 0 else math.inf
     if not cond < engine.SINGULAR_COND:
         raise engine._unrestrained(model, frozen, cond)
+    if a.shape[0] == 0:  # no closure, nothing locked: every motion is admissible
+        return col[:, None] * np.eye(model.nv)
     _, s, vt = np.linalg.svd(a)
-    rank = int(np.sum(s > engine.RANK_TOL * s[0]))
+    rank = int(np.sum(s > engine.RANK_TOL * s[0])) if s.size else 0
     return col[:, None] * vt[rank:].T
 
 

@@ -169,8 +169,11 @@ def model_configuration(model: pin.Model, q: Any, what: str = "q") -> np.ndarray
         qv = np.array(q, dtype=float)
     except (TypeError, ValueError):
         raise ParameterError(f"{what} must be a configuration of {model.nq} numbers, got {q!r}") from None
-    if qv.shape != (model.nq,) or not np.all(np.isfinite(qv)):
-        raise ParameterError(f"{what} must be a finite configuration of shape ({model.nq},), got shape {qv.shape}")
+    if qv.shape != (model.nq,):
+        raise ParameterError(f"{what} must be a configuration of shape ({model.nq},), got shape {qv.shape}")
+    bad = np.flatnonzero(~np.isfinite(qv))
+    if bad.size:
+        raise ParameterError(f"{what}[{bad[0]}] is {qv[bad[0]]}: a configuration must be finite")
     return qv
 
 
