@@ -65,3 +65,8 @@ class MechanismWarning(UserWarning):
     """A closed-loop robot was read or assembled with a repair the user should know of: a sidecar
     entry the model lacks (ignored, as Gepetto's loader does), motors that had to move for the
     loops to close."""
+
+
+class UnsupportedFeatureError(H4Error, ValueError):
+    """A robot file uses a feature h4pin cannot represent (an MJCF joint coupling, a tendon
+    motor): refused by name rather than dropped."""

@@ -255,7 +255,7 @@ def _scaling(model: pin.Model, data: pin.Data, constraint_models: Any, length: f
 def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *, locked: Sequence[str],
                stiffness: Mapping[str, Any], outputs: Sequence[Output], data: pin.Data | None = None,
                constraint_datas: Any = None, closure_tol: float = CLOSURE_TOL,
-               singular_cond: float = SINGULAR_COND) -> np.ndarray:
+               singular_cond: float = SINGULAR_COND, extra_rows: np.ndarray | None = None) -> np.ndarray:
     """Compliance C (m, m) of the outputs at an assembled configuration: ``dy = C w`` (module docstring).
 
     Args:
@@ -272,6 +272,7 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
         closure_tol: largest closure error accepted, relative to :func:`length_scale` (rad for
             the rotation of a CONTACT_6D closure).
         singular_cond: scaled condition number of the frozen mechanism from which ``q`` is refused.
+        extra_rows: (r, nv) further constraints ``rows @ dq = 0`` (a mechanism's joint couplings).
 
     Returns:
         C (m, m), in the units of the outputs per unit dual load (m/N, rad/(N.m), ...).
@@ -308,7 +309,7 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
     lock = np.zeros((sum(model.joints[j].nv for j in lock_ids), model.nv))
     lock_idx = np.concatenate([_velocity_slice(model, j) for j in lock_ids]) if lock_ids else np.zeros(0, int)
     lock[np.arange(len(lock_idx)), lock_idx] = 1.0
-    a = np.vstack([jc, lock])
+    a = np.vstack([jc, lock] + ([] if extra_rows is None else [np.asarray(extra_rows, float) * col[None, :]]))
     elastic = np.flatnonzero(k)
     frozen = np.vstack([a, np.eye(model.nv)[elastic]])
     sv = np.linalg.svd(frozen, compute_uv=False)

@@ -26,7 +26,6 @@ import dataclasses
 import math
 import threading
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -38,7 +37,7 @@ from h4pin._compat import constraint_calc
 from h4pin.elastic import engine
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
-from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError
+from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
 from h4pin.kinematics.pinocchio import model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
@@ -57,6 +56,38 @@ class MechanismModes:
     frequencies: np.ndarray
     shapes_q: np.ndarray
     massless: int
+
+
+@dataclasses.dataclass(frozen=True)
+class JointCoupling:
+    """A joint coupling (MJCF ``<equality><joint polycoef>``): ``u1 = sum_k poly[k] u2**k`` with
+    ``u = q - origin`` each (Pinocchio's coordinates); no ``joint2``: ``u1 = poly[0]``."""
+
+    joint1: str
+    joint2: str | None
+    poly: tuple[float, ...]
+    origin1: float = 0.0
+    origin2: float = 0.0
+
+    def _index(self, model: pin.Model, name: str) -> int:
+        jm = model.joints[model.getJointId(name)]
+        if jm.nq != 1 or jm.nv != 1:
+            raise ParameterError(f"coupling: joint {name!r} has {jm.nv} coordinates (one only)")
+        return jm.idx_q
+
+    def residual_row(self, model: pin.Model, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """The coupling's residual at q and its row (nv,) of d(residual)/dq."""
+        i1 = self._index(model, self.joint1)
+        row = np.zeros(model.nv)
+        row[model.joints[model.getJointId(self.joint1)].idx_v] = 1.0
+        if self.joint2 is None:
+            return float(q[i1] - self.origin1 - self.poly[0]), row
+        i2 = self._index(model, self.joint2)
+        u2 = q[i2] - self.origin2
+        value = sum(c * u2**k for k, c in enumerate(self.poly))
+        slope = sum(k * c * u2 ** (k - 1) for k, c in enumerate(self.poly) if k)
+        row[model.joints[model.getJointId(self.joint2)].idx_v] = -slope
+        return float(q[i1] - self.origin1 - value), row
 
 
 def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
@@ -142,9 +173,11 @@ class Mechanism:
         ranges: (lower, upper) (nq,) each, nan where a coordinate has no range (default: the
             model's limits of one-coordinate joints where lower < upper).
         springs: the file's joint springs ``{joint: stiffness}`` (default none).
+        couplings: joint couplings (:class:`JointCoupling`), constraints like the closures.
 
     Attributes:
-        reference, ranges, springs: as given (read-only). free_flyers: the free-flyer joints on
+        reference, ranges, springs: as given (read-only). spring_rest: each file spring's rest
+            position (MJCF ``springref``), where it has one. free_flyers: the free-flyer joints on
             the universe that no closure ties to the rest (a legged robot's root, whose loops all
             lie within it; not a plate closed on legs), held by :meth:`compliance` and
             :meth:`modes` unless freed.
@@ -155,7 +188,7 @@ class Mechanism:
 
     def __init__(self, model: pin.Model, constraint_models: Iterable[Any] = (), actuated: Iterable[Any] = (), *,
                  name: str | None = None, reference: Any = None, ranges: tuple[Any, Any] | None = None,
-                 springs: Mapping[Any, Any] | None = None):
+                 springs: Mapping[Any, Any] | None = None, couplings: Iterable[JointCoupling] = ()):
         if not isinstance(model, pin.Model):
             raise ParameterError(f"model: a pinocchio.Model, got {type(model).__name__}")
         model = pin.Model(model)
@@ -178,6 +211,14 @@ class Mechanism:
             stiff = dict(zip(_names(model, list(stiff), "springs"), stiff.values(), strict=True))
             engine.stiffness_vector(model, stiff)  # checked now
         object.__setattr__(self, "springs", stiff)
+        object.__setattr__(self, "spring_rest", {})
+        cps = tuple(couplings)
+        for c in cps:
+            if not isinstance(c, JointCoupling):
+                raise ParameterError(f"couplings: JointCoupling values, got {c!r}")
+            _names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
+            c.residual_row(model, pin.neutral(model))
+        object.__setattr__(self, "couplings", cps)
         roots = tuple(model.names[j] for j in range(1, model.njoints)
                       if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
                       and not _tied(model, self.constraint_models, j))
@@ -245,32 +286,36 @@ class Mechanism:
 
     @classmethod
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
-        """An MJCF file: its tree, its ``connect``/``weld`` equalities as closures (Pinocchio 4's
-        reader), the joints of its ``<actuator>`` elements as the motors (or ``actuated``).
+        """An MJCF file as MuJoCo means it: the tree and its ``connect``/``weld`` equalities as
+        closures (Pinocchio 4's reader; a body's several joints, which that reader merges into
+        one composite joint, are split back into the file's joints, each with its name), the
+        joints of its ``<actuator>`` elements as the motors (or ``actuated``), and from MuJoCo's
+        own compiler: the reference configuration (the first keyframe, else ``qpos0``: each
+        joint's ``ref``), the joints' ranges as the file states them, and the joints'
+        ``stiffness`` as :attr:`springs` (``springref``: :attr:`spring_rest`). Pinocchio's
+        configuration is MuJoCo's ``qpos`` (a ball's or free joint's quaternion reordered).
 
         Raises:
-            MissingExtraError: Pinocchio < 4 (its MJCF reader gives no closures).
-            MalformedURDFError: Pinocchio cannot read the file.
+            MissingExtraError: Pinocchio < 4 (its MJCF reader gives no closures), or MuJoCo is
+                not installed (the ``mujoco`` extra).
+            MalformedURDFError: MuJoCo or Pinocchio cannot read the file (its message), or the
+                readers disagree on the closures.
+            UnsupportedFeatureError: joint or tendon couplings (``<equality><joint>``,
+                ``<tendon>``), an actuator not on a joint: refused by name, never dropped.
+            ParameterError: a motor on a joint the model lacks.
         """
-        from h4pin.extras import MissingExtraError
+        from h4pin.elastic import mjcf_reader
 
-        reader = getattr(pin, "buildModelAndLegacyConstraintsFromMJCF", None)
-        if reader is None:
-            raise MissingExtraError(f"Mechanism.from_mjcf needs Pinocchio >= 4 (its MJCF reader's closures); "
-                                    f"this is {pin.__version__}")
-        path = Path(path)
-        try:
-            model, cms = reader(str(path))
-        except (RuntimeError, ValueError, OSError) as exc:
-            raise MalformedURDFError(f"{path}: Pinocchio cannot read it ({exc})") from None
-        if actuated is None:
-            try:
-                root = ET.parse(path).getroot()
-            except (ET.ParseError, OSError) as exc:
-                raise MalformedURDFError(f"{path}: {exc}") from None
-            actuated = [a.get("joint") for block in root.iter("actuator") for a in block if a.get("joint")]
-            actuated = [j for j in dict.fromkeys(actuated) if model.existJointName(j)]
-        return cls(model, list(cms), actuated, name=model.name or path.stem)
+        model, cms, info = mjcf_reader.read(path)
+        if info.refused and actuated is None:
+            raise UnsupportedFeatureError(f"{path}: actuator(s) {', '.join(map(repr, info.refused[:4]))} drive no "
+                                          "joint (tendon, site or body transmission); give the motor joints with "
+                                          "actuated=...")
+        motors = info.motors if actuated is None else actuated
+        mech = cls(model, cms, motors, name=info.name, reference=info.reference, ranges=info.ranges,
+                   springs=info.springs, couplings=info.couplings)
+        object.__setattr__(mech, "spring_rest", info.spring_rest)
+        return mech
 
     # ------------------------------------------------------------------ geometry
     def _q(self, q: Any, what: str = "q") -> np.ndarray:
@@ -286,6 +331,8 @@ class Mechanism:
             cd = cm.createData()
             constraint_calc(cm, self.model, d, cd)
             out[cm.name] = engine.closure_residual(cm, cd)
+        for c in self.couplings:
+            out[f"coupling {c.joint1}"] = (abs(c.residual_row(self.model, q)[0]), 0.0)
         return out
 
     def assemble(self, q: Any = None, *, fixed: Iterable[Any] | None = None, tol: float = ASSEMBLY_TOL,
@@ -326,6 +373,17 @@ class Mechanism:
         warnings.warn(f"{self.name}: the loops do not close with the motors where the start holds them; assembled "
                       f"with the motors free (moved by, rad or m: {', '.join(moved)})", MechanismWarning, stacklevel=2)
         return out
+
+    def _check_couplings(self, q: np.ndarray) -> None:
+        for c in self.couplings:
+            r = c.residual_row(self.model, q)[0]
+            if abs(r) > engine.CLOSURE_TOL:
+                raise UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
+
+    def _coupling_rows(self, q: np.ndarray) -> np.ndarray | None:
+        if not self.couplings:
+            return None
+        return np.array([c.residual_row(self.model, q)[1] for c in self.couplings])
 
     def _check_ranges(self, q: np.ndarray, joints: Iterable[str], what: str) -> None:
         lo, hi = self.ranges
@@ -371,9 +429,14 @@ class Mechanism:
                 rows.append(jac * w[:, None])
                 res.append(r * w)
                 worst = max(worst, (err, cm.name))
+            for c in self.couplings:
+                r, row = c.residual_row(model, q)
+                rows.append(row[None])
+                res.append(np.array([r]))
+                worst = max(worst, (abs(r), f"coupling {c.joint1}"))
             return np.concatenate(res), np.vstack(rows), worst
 
-        if not self.constraint_models:
+        if not self.constraint_models and not self.couplings:
             return q0
         if free.any():
             def fun(x: np.ndarray) -> np.ndarray:
@@ -473,9 +536,12 @@ class Mechanism:
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
         """
         stiff = self._springs(springs)
-        return engine.compliance_matrix(self.model, self.constraint_models, self._q(q),
+        q = self._q(q)
+        self._check_couplings(q)
+        return engine.compliance_matrix(self.model, self.constraint_models, q,
                                         locked=self._locked(locked, stiff, free_root), stiffness=stiff,
-                                        outputs=self._outputs(outputs), data=self.data)
+                                        outputs=self._outputs(outputs), data=self.data,
+                                        extra_rows=self._coupling_rows(q))
 
     def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
               payload: tuple[str, Any] | None = None, free_root: bool = False) -> MechanismModes:
@@ -496,7 +562,8 @@ class Mechanism:
         model, d = self.model, self.data
         k = engine.stiffness_vector(model, stiff)
         pin.computeJointJacobians(model, d, q)
-        n = _admissible(model, self.constraint_models, q, lock, k, d)
+        self._check_couplings(q)
+        n = _admissible(model, self.constraint_models, q, lock, k, d, self._coupling_rows(q))
         extra = None
         if payload is not None:
             frame, body = payload
@@ -531,4 +598,4 @@ def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, n
     return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))
 
 
-__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "Mechanism", "MechanismModes"]
+__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "MechanismModes"]

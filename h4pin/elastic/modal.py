@@ -174,7 +174,7 @@ def mass_model(em: ElasticH4, link_inertias: bool = True) -> pin.Model:
 
 
 def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked: tuple[str, ...],
-                k: np.ndarray, d: pin.Data) -> np.ndarray:
+                k: np.ndarray, d: pin.Data, extra_rows: np.ndarray | None = None) -> np.ndarray:
     """N (nv, nz): a basis of the admissible motions ``dq = N z`` in scaled coordinates
     (translations over the length scale), after the engine's closure and singularity checks.
     ``pin.computeJointJacobians`` must have run in ``d`` at q."""
@@ -190,7 +190,7 @@ def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked:
     lock_idx = np.concatenate([engine._velocity_slice(model, model.getJointId(n)) for n in locked] or
                               [np.zeros(0, dtype=int)])
     lock = np.eye(model.nv)[lock_idx]
-    a = np.vstack([jc, lock])
+    a = np.vstack([jc, lock] + ([] if extra_rows is None else [np.asarray(extra_rows, float) * col[None, :]]))
     frozen = np.vstack([a, np.eye(model.nv)[np.flatnonzero(k)]])
     sv = np.linalg.svd(frozen, compute_uv=False)
     cond = sv[0] / sv[-1] if len(sv) >= model.nv and sv[-1] > 0 else math.inf
