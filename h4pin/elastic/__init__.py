@@ -31,8 +31,9 @@ from h4pin.elastic.engine import (
     compliance_matrix,
     insert_joints,
 )
+from h4pin.elastic.beams import Beam
 from h4pin.elastic.h4 import ElasticH4, elastic_model
-from h4pin.elastic.mechanism import Mechanism, MechanismModes
+from h4pin.elastic.mechanism import JointCoupling, Mechanism, MechanismModes
 from h4pin.elastic.modal import Modes, Payload, modes
 
 
@@ -59,6 +60,7 @@ class _OldModesModule(_types.ModuleType):
 
 _sys.modules.setdefault("h4pin.elastic.modes", _OldModesModule("h4pin.elastic.modes"))
 
-__all__ = ["ElasticH4", "FrameOutput", "Insertion", "JointOutput", "Mechanism", "MechanismModes", "Modes", "Payload",
+__all__ = ["Beam", "ElasticH4", "FrameOutput", "Insertion", "JointCoupling", "JointOutput", "Mechanism", "MechanismModes",
+           "Modes", "Payload",
            "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "compliance_matrix", "elastic_model",
            "insert_joints", "modes"]

@@ -128,6 +128,17 @@ def _urdf_ranges(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+def _finite(q: Any, n: int, what: str) -> np.ndarray:
+    try:
+        qv = np.array(q, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} must be a configuration of {n} numbers, got {q!r}") from None
+    bad = np.flatnonzero(~np.isfinite(qv))
+    if bad.size:
+        raise ParameterError(f"{what}[{bad[0]}] is {qv[bad[0]]}: a configuration must be finite")
+    return qv
+
+
 def _tied(model: pin.Model, constraint_models: Iterable[Any], root: int) -> bool:
     """Whether a closure joins a body of joint ``root``'s subtree to a body outside it (a floating
     plate closed on legs, as the H4's, is tied; a legged robot's free-flyer root, whose loops all
@@ -219,6 +230,8 @@ class Mechanism:
             _names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
             c.residual_row(model, pin.neutral(model))
         object.__setattr__(self, "couplings", cps)
+        object.__setattr__(self, "beam_springs", {})
+        object.__setattr__(self, "_lift", None)
         roots = tuple(model.names[j] for j in range(1, model.njoints)
                       if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
                       and not _tied(model, self.constraint_models, j))
@@ -317,8 +330,48 @@ class Mechanism:
         object.__setattr__(mech, "spring_rest", info.spring_rest)
         return mech
 
+    def with_beams(self, beams: Mapping[str, Any]) -> Mechanism:
+        """A new mechanism whose links ``{link name: h4pin.elastic.Beam}`` are flexible: each
+        beam's six virtual joints (:mod:`h4pin.elastic.beams`: the virtual joint method, exact for
+        an Euler-Bernoulli cantilever from the link's joint to its far end) inserted, with their
+        springs in :attr:`beam_springs`, added to every :meth:`compliance` and :meth:`modes`
+        call. A configuration of this (rigid) mechanism is accepted as it is (the virtual joints
+        at 0); so are its closures, motors, ranges and couplings.
+
+        Raises:
+            ParameterError: not a mapping of link names to beams, an unknown link, a link with no
+                far end or several without ``to``.
+        """
+        from h4pin.elastic import beams as bm
+
+        if not isinstance(beams, Mapping) or not beams:
+            raise ParameterError(f"beams: a mapping {{link name: h4pin.elastic.Beam}}, got {beams!r}")
+        model = self.model
+        d = model.createData()
+        pin.framesForwardKinematics(model, d, self.reference)
+        ins = [bm.insertion(model, d, self.constraint_models, link, beam) for link, beam in beams.items()]
+        parents = [i.parent for i in ins]
+        if len(set(parents)) != len(parents):
+            raise ParameterError("beams: two links on one joint; one beam per joint")
+        new_model, new_cms, q_index = engine.insert_joints(model, ins, self.constraint_models, self.reference)
+        lift = np.zeros(new_model.nq)
+        lift[q_index] = self.reference
+        lo, hi = (np.full(new_model.nq, np.nan) for _ in range(2))
+        lo[q_index], hi[q_index] = self.ranges
+        out = Mechanism(new_model, new_cms, self.actuated, name=f"{self.name} with beams", reference=lift,
+                        ranges=(lo, hi), springs=self.springs, couplings=self.couplings)
+        object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints})
+        object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
+        object.__setattr__(out, "spring_rest", dict(self.spring_rest))
+        return out
+
     # ------------------------------------------------------------------ geometry
     def _q(self, q: Any, what: str = "q") -> np.ndarray:
+        lift = self._lift
+        if lift is not None and np.shape(q) == (lift[1],):
+            full = np.zeros(self.model.nq)
+            full[lift[0]] = _finite(q, lift[1], what)
+            return full
         return model_configuration(self.model, q, what)
 
     def closure_errors(self, q: Any) -> dict[str, tuple[float, float]]:
@@ -359,6 +412,7 @@ class Mechanism:
         model = self.model
         start = np.array(self.reference) if q is None else self._q(q)
         held = _names(model, self.actuated if fixed is None else fixed, "fixed")
+        held = held + tuple(n for n in self.beam_springs if n not in held)  # a beam's joints: rigid assembly
         self._check_ranges(start, held, "held")
         try:
             return self._close(start, held, float(tol), int(iterations))
@@ -500,13 +554,13 @@ class Mechanism:
         return out
 
     def _springs(self, springs: Mapping[Any, Any]) -> dict[str, Any]:
-        if not isinstance(springs, Mapping) or not springs:
+        if not isinstance(springs, Mapping) or not (springs or self.beam_springs):
             raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
         names = _names(self.model, list(springs), "springs")
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
             raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
-        return dict(zip(names, springs.values(), strict=True))
+        return {**self.beam_springs, **dict(zip(names, springs.values(), strict=True))}
 
     def _locked(self, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
         if not isinstance(free_root, bool):

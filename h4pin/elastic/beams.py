@@ -1,0 +1,174 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Flexible links by the virtual joint method: :class:`Beam` and its virtual joints.
+
+A flexible link is a straight Euler-Bernoulli beam (axial EA, torsion GJ, bending EIy and EIz;
+no shear) from the origin of the joint that carries the link (its near end) to the link's other
+attachment (its far end): the origin of its one child joint, or its one closure point; ``to``
+picks one where there are several. Loads reach the link at its ends: the frames at the far end
+(a closure frame, a link fixed there) move with it; every other frame and attachment of the link
+stays with its near end. Section axes: x along the
+span, y the link frame's axis most normal to x (projected), z = x × y.
+
+The link's compliance at its far end, relative to its near end, is the cantilever's:
+``C = ∫_0^L Bᵀ(s) D⁻¹ B(s) ds`` with, per bending plane, ``[[L³/3, L²/2], [L²/2, L]] / EI``.
+It is carried by six virtual joints hung from the link's joint, all reading 0 at the reference
+configuration, massless (the link's inertia stays as the file gives it):
+
+* a slide along x, stiffness ``EA / L``; a hinge about x, ``GJ / L``;
+* per bending plane, two hinges about the bending axis through the two Gauss-Legendre points of
+  the span (``L/2 ∓ L/(2√3)`` from the far end), each of stiffness ``2 EI / L``: a two-point rule
+  integrates the cantilever's ``∫ (s, 1)(s, 1)ᵀ ds / EI`` exactly, so the far end's 6 x 6
+  compliance is the beam's to round-off.
+
+The same :func:`h4pin.elastic.engine.insert_joints` hangs the H4's element joints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin.elastic.engine import Insertion, VirtualJoint
+from h4pin.errors import ParameterError
+
+#: The virtual joints of a beam on link ``<link>``: ``<link>_beam_<suffix>``.
+SUFFIXES = ("axial", "torsion", "bend_z1", "bend_z2", "bend_y1", "bend_y2")
+_GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
+
+
+def _positive(name: str, value: Any, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"Beam: {name} must be a number ({unit}), got {value!r}")
+    v = float(value)
+    if not (0.0 < v < math.inf):
+        raise ParameterError(f"Beam: {name} must be finite and > 0 ({unit}), got {value!r}")
+    return v
+
+
+@dataclasses.dataclass(frozen=True)
+class Beam:
+    """A straight Euler-Bernoulli beam's section and material (SI): Young's modulus ``E`` (Pa),
+    shear modulus ``G`` (Pa), area ``A`` (m²), second moments ``Iy``, ``Iz`` (m⁴, bending about
+    the section's y and z axes), torsion constant ``J`` (m⁴); ``to``: the far end's name (a child
+    joint, a closure or a frame) where the link has several."""
+
+    E: float
+    G: float
+    A: float
+    Iy: float
+    Iz: float
+    J: float
+    to: str | None = None
+
+    def __post_init__(self) -> None:
+        for name, unit in (("E", "Pa"), ("G", "Pa"), ("A", "m^2"), ("Iy", "m^4"), ("Iz", "m^4"), ("J", "m^4")):
+            object.__setattr__(self, name, _positive(name, getattr(self, name), unit))
+        if self.to is not None and not isinstance(self.to, str):
+            raise ParameterError(f"Beam: to must be a name, got {self.to!r}")
+
+    @classmethod
+    def circle(cls, d: float, E: float, G: float, to: str | None = None) -> Beam:
+        """A solid round section of diameter ``d`` (m)."""
+        d = _positive("d", d, "m")
+        return cls(E, G, math.pi * d**2 / 4, math.pi * d**4 / 64, math.pi * d**4 / 64, math.pi * d**4 / 32, to)
+
+    @classmethod
+    def tube(cls, d: float, t: float, E: float, G: float, to: str | None = None) -> Beam:
+        """A round tube of outer diameter ``d`` and wall ``t`` (m, 0 < t < d/2)."""
+        d, t = _positive("d", d, "m"), _positive("t", t, "m")
+        if not t < d / 2:
+            raise ParameterError(f"Beam.tube: the wall t = {t:g} m must be under half the diameter d = {d:g} m")
+        di = d - 2 * t
+        i = math.pi * (d**4 - di**4) / 64
+        return cls(E, G, math.pi * (d**2 - di**2) / 4, i, i, 2 * i, to)
+
+    @classmethod
+    def rect(cls, b: float, h: float, E: float, G: float, to: str | None = None) -> Beam:
+        """A solid rectangle, ``b`` (m) along the section's y axis and ``h`` (m) along z; torsion
+        constant ``a c³ (1/3 - 0.21 c/a (1 - c⁴/(12 a⁴)))`` with a >= c the two sides (Roark's
+        approximation, within about 0.5 % of the exact series)."""
+        b, h = _positive("b", b, "m"), _positive("h", h, "m")
+        a, c = max(b, h), min(b, h)
+        j = a * c**3 * (1.0 / 3.0 - 0.21 * c / a * (1.0 - c**4 / (12.0 * a**4)))
+        return cls(E, G, b * h, b * h**3 / 12, h * b**3 / 12, j, to)
+
+    def joints(self, link: str, near: np.ndarray, far: np.ndarray, axes: np.ndarray) -> tuple[VirtualJoint, ...]:
+        """The six virtual joints (module docstring) of this beam from ``near`` to ``far`` (world,
+        m) with the link frame's ``axes`` (3 x 3, columns) at the reference configuration."""
+        span = np.asarray(far, float) - np.asarray(near, float)
+        length = float(np.linalg.norm(span))
+        if not length > 0:
+            raise ParameterError(f"beam on {link!r}: its two ends coincide (zero length)")
+        x = span / length
+        pick = int(np.argmin(np.abs(axes.T @ x)))
+        y = axes[:, pick] - (axes[:, pick] @ x) * x
+        y /= np.linalg.norm(y)
+        z = np.cross(x, y)
+        out = [VirtualJoint(f"{link}_beam_axial", "prismatic", x, near, self.E * self.A / length),
+               VirtualJoint(f"{link}_beam_torsion", "revolute", x, near, self.G * self.J / length)]
+        for axis, second, tag in ((z, self.Iz, "z"), (y, self.Iy, "y")):
+            for k, g in enumerate(_GAUSS, start=1):
+                point = far - g * length * x
+                out.append(VirtualJoint(f"{link}_beam_bend_{tag}{k}", "revolute", axis, point,
+                                        2.0 * self.E * second / length))
+        return tuple(out)
+
+
+def insertion(model: pin.Model, data: pin.Data, constraint_models: Any, link: str, beam: Beam) -> Insertion:
+    """The :class:`~h4pin.elastic.engine.Insertion` of ``beam`` on ``link`` (a body frame of
+    ``model``; ``data`` at the reference configuration, frames placed).
+
+    Raises:
+        ParameterError: no such link, no far end, several without ``to`` (listed), a bad ``to``.
+    """
+    if not isinstance(beam, Beam):
+        raise ParameterError(f"beams: {link!r} -> an h4pin.elastic.Beam, got {beam!r}")
+    if not isinstance(link, str) or not model.existFrame(link, pin.FrameType.BODY):
+        bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+        raise ParameterError(f"beams: no link {link!r} (links: {', '.join(bodies)})")
+    joint = model.frames[model.getFrameId(link, pin.FrameType.BODY)].parentJoint
+    if joint == 0:
+        raise ParameterError(f"beams: link {link!r} is on the ground (no joint carries it)")
+    om = data.oMi[joint]
+    ends: dict[str, tuple[str, Any, np.ndarray]] = {}
+    for j in range(1, model.njoints):
+        if model.parents[j] == joint:
+            ends[model.names[j]] = ("joint", j, (om * model.jointPlacements[j]).translation)
+    for i, cm in enumerate(constraint_models):
+        for side, (jid, place) in enumerate(((cm.joint1_id, cm.joint1_placement),
+                                              (cm.joint2_id, cm.joint2_placement)), start=1):
+            if jid == joint:
+                ends[cm.name or f"closure_{i + 1}"] = ("closure", (i, side), (om * place).translation)
+    if not ends:
+        raise ParameterError(f"beams: link {link!r} has no far end (no child joint, no closure on it)")
+    if beam.to is None:
+        if len(ends) > 1:
+            raise ParameterError(f"beams: link {link!r} has several far ends: {', '.join(ends)}; pick one with "
+                                 "Beam(..., to=name)")
+        name = next(iter(ends))
+    else:
+        name = beam.to
+        if name not in ends and model.existFrame(name):
+            f = model.frames[model.getFrameId(name)]
+            where = (om * f.placement).translation if f.parentJoint == joint else None
+            hits = [n for n, e in ends.items() if where is not None and np.linalg.norm(e[2] - where) < 1e-12]
+            name = hits[0] if hits else name
+        if name not in ends:
+            raise ParameterError(f"beams: {beam.to!r} is not a far end of link {link!r} ({', '.join(ends)})")
+    kind, ref, far = ends[name]
+    near = om.translation
+    # every frame at the far end moves with it (a closure frame, a link fixed there), but the link's own
+    length = float(np.linalg.norm(far - om.translation))
+    frames = tuple(f.name for f in model.frames
+                   if f.parentJoint == joint and f.type != pin.FrameType.JOINT and f.name != link
+                   and np.linalg.norm((om * f.placement).translation - far) <= 1e-9 * max(length, 1e-3))
+    return Insertion(model.names[joint], beam.joints(link, near, far, om.rotation),
+                     children=(model.names[ref],) if kind == "joint" else (),
+                     frames=frames, closures=(ref,) if kind == "closure" else ())
+
+
+__all__ = ["SUFFIXES", "Beam", "insertion"]
