@@ -21,6 +21,7 @@ import types as _types
 import warnings as _warnings
 
 from h4pin.elastic import modal as _modal
+from h4pin.elastic.beams import Beam
 from h4pin.elastic.engine import (
     FrameOutput,
     Insertion,
@@ -31,7 +32,6 @@ from h4pin.elastic.engine import (
     compliance_matrix,
     insert_joints,
 )
-from h4pin.elastic.beams import Beam
 from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.mechanism import JointCoupling, Mechanism, MechanismModes
 from h4pin.elastic.modal import Modes, Payload, modes
