@@ -60,7 +60,7 @@ class _OldModesModule(_types.ModuleType):
 
 _sys.modules.setdefault("h4pin.elastic.modes", _OldModesModule("h4pin.elastic.modes"))
 
-__all__ = ["Beam", "ElasticH4", "FrameOutput", "Insertion", "JointCoupling", "JointOutput", "Mechanism", "MechanismModes",
-           "Modes", "Payload",
+__all__ = ["Beam", "ElasticH4", "FrameOutput", "Insertion", "JointCoupling", "JointOutput", "Mechanism",
+           "MechanismModes", "Modes", "Payload",
            "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "compliance_matrix", "elastic_model",
            "insert_joints", "modes"]
