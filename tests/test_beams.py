@@ -248,3 +248,50 @@ def test_bad_beams_are_typed_errors():
                 lambda: mech.with_beams({next(iter(_beamable(mech, Beam.circle(0.01, **ALU)))): 5})):
         with pytest.raises(H4Error):
             bad()
+
+
+def test_the_h4_with_beams_on_its_forearms_and_bars_is_eq30():
+    """The H4 read as a Mechanism (its URDF and sidecar), its motors springs kc, a beam on each
+    forearm (P_i to the tip A_i, the cross-bar and the two bars' joints carried: EI in its plane,
+    an out-of-plane EI, GJ = G I0, axially rigid) and on each bar (axial Eb Sb, otherwise rigid):
+    the compliance at D is h4pin.compliance's consistent model with the forearm_out_EI element,
+    every term (control, bending, torsion, tension, out of plane) together, to round-off
+    (measured 6e-15; each term alone 1e-15 to 1e-12)."""
+    import h4pin
+    from h4pin.kinematics.closed_form import centre_pose
+
+    inf = float("inf")
+    h4 = h4pin.load("prototype")
+    sp = h4.geometry.springs
+    out_ei = 4 * sp["E"][0] * sp["I"][0]
+    ref = h4pin.load("prototype", elements={"forearm_out_EI": out_ei})
+    pose = centre_pose(h4) + np.array([0.03, -0.02, 0.01, 0.1])
+    mech = Mechanism.from_urdf(Path(h4pin.robot.urdf_dir()) / "h4_prototype.urdf")
+    q = pin.neutral(mech.model)
+    qh = h4.configuration(pose)
+    for j in range(1, h4.model.njoints):
+        jm, jh = mech.model.joints[mech.model.getJointId(h4.model.names[j])], h4.model.joints[j]
+        q[jm.idx_q:jm.idx_q + jm.nq] = qh[jh.idx_q:jh.idx_q + jh.nq]
+    d = mech.model.createData()
+    pin.computeJointJacobians(mech.model, d, q)
+    beams = {}
+    for i in range(1, 5):
+        ja = mech.model.getJointId(f"actuator_{i}")
+        u = pin.getJointJacobian(mech.model, d, ja, pin.LOCAL_WORLD_ALIGNED)[3:, mech.model.joints[ja].idx_v]
+        e, g, ei, i0 = sp["E"][i - 1], sp["G"][i - 1], sp["I"][i - 1], sp["I0"][i - 1]
+        beam = Beam(e, g, inf, ei, out_ei / e, i0, to=f"A_{i}",
+                    carry=(f"bar_{i}1_u1", f"bar_{i}2_u1", f"A_{i}1", f"A_{i}2"))
+        # the section's y is the link frame's axis most normal to the span: here the actuator axis u_i
+        ins = insertion(mech.model, d, mech.constraint_models, f"forearm_{i}", beam)
+        bend_y = next(j for j in ins.joints if j.name.endswith("bend_y1"))
+        assert abs(abs(np.dot(bend_y.axis, u)) - 1) < 1e-12  # bending about y = about u_i: in its plane
+        beams[f"forearm_{i}"] = beam
+        for k in (1, 2):
+            beams[f"bar_{i}{k}"] = Beam(sp["Eb"][0], 1.0, sp["Sb"][2 * (i - 1) + k - 1], inf, inf, inf)
+    flex = mech.with_beams(beams)
+    got = flex.compliance(q, dict(zip(mech.actuated, sp["kc"], strict=True)), ["D"])
+    want = h4pin.compliance(ref, pose, "consistent").matrix
+    scale = np.abs(want[:3, :3]).max()
+    np.testing.assert_allclose(got[:3, :3], want[:3, :3], rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(got[5, :3], want[5, :3], rtol=0, atol=1e-10 * scale)
+    print(f"H4 with beams vs eq. 30: {np.abs(got[:3, :3] - want[:3, :3]).max() / scale:.1e}")

@@ -40,12 +40,13 @@ SUFFIXES = ("axial", "torsion", "bend_z1", "bend_z2", "bend_y1", "bend_y2")
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
 
 
-def _positive(name: str, value: Any, unit: str) -> float:
+def _positive(name: str, value: Any, unit: str, rigid: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ParameterError(f"Beam: {name} must be a number ({unit}), got {value!r}")
     v = float(value)
-    if not (0.0 < v < math.inf):
-        raise ParameterError(f"Beam: {name} must be finite and > 0 ({unit}), got {value!r}")
+    if not (0.0 < v < math.inf or (rigid and v == math.inf)):
+        raise ParameterError(f"Beam: {name} must be {'> 0 (inf: rigid)' if rigid else 'finite and > 0'} ({unit}), "
+                             f"got {value!r}")
     return v
 
 
@@ -53,8 +54,11 @@ def _positive(name: str, value: Any, unit: str) -> float:
 class Beam:
     """A straight Euler-Bernoulli beam's section and material (SI): Young's modulus ``E`` (Pa),
     shear modulus ``G`` (Pa), area ``A`` (m²), second moments ``Iy``, ``Iz`` (m⁴, bending about
-    the section's y and z axes), torsion constant ``J`` (m⁴); ``to``: the far end's name (a child
-    joint, a closure or a frame) where the link has several."""
+    the section's y and z axes), torsion constant ``J`` (m⁴) (``A``, ``Iy``, ``Iz``, ``J`` may be
+    ``inf``: rigid that way, no virtual joint); ``to``: the far end's name (a child
+    joint, a closure or a frame of the link) where the link has several; ``carry``: further
+    attachments of the link (child joints, closures, frames) fixed to the far end rather than to
+    the near one (a cross-bar at a forearm's tip, say)."""
 
     E: float
     G: float
@@ -63,12 +67,16 @@ class Beam:
     Iz: float
     J: float
     to: str | None = None
+    carry: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name, unit in (("E", "Pa"), ("G", "Pa"), ("A", "m^2"), ("Iy", "m^4"), ("Iz", "m^4"), ("J", "m^4")):
-            object.__setattr__(self, name, _positive(name, getattr(self, name), unit))
+            object.__setattr__(self, name, _positive(name, getattr(self, name), unit, rigid=name not in "EG"))
         if self.to is not None and not isinstance(self.to, str):
             raise ParameterError(f"Beam: to must be a name, got {self.to!r}")
+        if isinstance(self.carry, str) or not all(isinstance(c, str) for c in self.carry):
+            raise ParameterError(f"Beam: carry must be a tuple of names, got {self.carry!r}")
+        object.__setattr__(self, "carry", tuple(self.carry))
 
     @classmethod
     def circle(cls, d: float, E: float, G: float, to: str | None = None) -> Beam:
@@ -157,18 +165,33 @@ def insertion(model: pin.Model, data: pin.Data, constraint_models: Any, link: st
             where = (om * f.placement).translation if f.parentJoint == joint else None
             hits = [n for n, e in ends.items() if where is not None and np.linalg.norm(e[2] - where) < 1e-12]
             name = hits[0] if hits else name
-        if name not in ends:
+        own = model.existFrame(name) and model.frames[model.getFrameId(name)].parentJoint == joint
+        if name not in ends and not own:
             raise ParameterError(f"beams: {beam.to!r} is not a far end of link {link!r} ({', '.join(ends)})")
+    if name not in ends:  # a frame of the link that is no attachment: the far end is its origin
+        f = model.frames[model.getFrameId(name)]
+        ends[name] = ("frame", None, (om * f.placement).translation)
     kind, ref, far = ends[name]
+    carried = []
+    for c in beam.carry:
+        if c in ends and c != name:
+            carried.append(ends[c])
+        elif c != name and model.existFrame(c) and model.frames[model.getFrameId(c)].parentJoint == joint:
+            carried.append(("frame", None, (om * model.frames[model.getFrameId(c)].placement).translation))
+        else:
+            raise ParameterError(f"beams: carry {c!r} is not another attachment or frame of link {link!r} "
+                                 f"({', '.join(ends)})")
     near = om.translation
     # every frame at the far end moves with it (a closure frame, a link fixed there), but the link's own
     length = float(np.linalg.norm(far - om.translation))
     frames = tuple(f.name for f in model.frames
                    if f.parentJoint == joint and f.type != pin.FrameType.JOINT and f.name != link
                    and np.linalg.norm((om * f.placement).translation - far) <= 1e-9 * max(length, 1e-3))
+    every = [(kind, ref), *((k, r) for k, r, _ in carried)]
+    frames = frames + tuple(c for c, (k, _, _) in zip(beam.carry, carried, strict=True) if k == "frame")
     return Insertion(model.names[joint], beam.joints(link, near, far, om.rotation),
-                     children=(model.names[ref],) if kind == "joint" else (),
-                     frames=frames, closures=(ref,) if kind == "closure" else ())
+                     children=tuple(model.names[r] for k, r in every if k == "joint"), frames=frames,
+                     closures=tuple(r for k, r in every if k == "closure"))
 
 
 __all__ = ["SUFFIXES", "Beam", "insertion"]

@@ -360,7 +360,8 @@ class Mechanism:
         lo[q_index], hi[q_index] = self.ranges
         out = Mechanism(new_model, new_cms, self.actuated, name=f"{self.name} with beams", reference=lift,
                         ranges=(lo, hi), springs=self.springs, couplings=self.couplings)
-        object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints})
+        object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints
+                                                 if math.isfinite(j.stiffness)})
         object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
         object.__setattr__(out, "spring_rest", dict(self.spring_rest))
         return out
