@@ -295,3 +295,33 @@ def test_the_h4_with_beams_on_its_forearms_and_bars_is_eq30():
     np.testing.assert_allclose(got[:3, :3], want[:3, :3], rtol=0, atol=1e-10 * scale)
     np.testing.assert_allclose(got[5, :3], want[5, :3], rtol=0, atol=1e-10 * scale)
     print(f"H4 with beams vs eq. 30: {np.abs(got[:3, :3] - want[:3, :3]).max() / scale:.1e}")
+
+
+def test_the_sidecar_carries_beams(tmp_path):
+    """``beams:`` in the sidecar (a round section by d, or the six values) gives what
+    with_beams gives; a bad entry is a MalformedURDFError naming the link and the key."""
+    import yaml
+
+    from h4pin.errors import MalformedURDFError
+
+    src = ROBOTS / "5bar_linkage_iso3d"
+    content = yaml.safe_load((src / "robot.yaml").read_text())
+    mech = Mechanism.from_urdf(src / "robot.urdf")
+    links = list(_beamable(mech, Beam.circle(0.01, **ALU)))[:2]
+    content["beams"] = {links[0]: {"E": 70e9, "G": 26e9, "d": 0.01},
+                        links[1]: {"E": 70e9, "G": 26e9, "A": 1e-4, "Iy": 1e-9, "Iz": 2e-9, "J": 3e-9}}
+    side = tmp_path / "robot.yaml"
+    side.write_text(yaml.safe_dump(content))
+    flex = Mechanism.from_urdf(src / "robot.urdf", side)
+    by_hand = mech.with_beams({links[0]: Beam.circle(0.01, **ALU), links[1]: Beam(70e9, 26e9, 1e-4, 1e-9, 2e-9, 3e-9)})
+    q = mech.assemble()
+    springs = {m: 300.0 for m in mech.actuated}
+    out = [mech.model.frames[-1].name]
+    np.testing.assert_array_equal(flex.compliance(q, springs, out), by_hand.compliance(q, springs, out))
+    for bad, match in (({links[0]: {"E": 70e9, "G": 26e9}}, "missing A"), ({links[0]: {"E": 1, "G": 1, "d": -1}}, "d"),
+                       ({links[0]: {"E": 1, "G": 1, "d": 1, "wat": 2}}, "unknown key 'wat'"), ({"nope": {"E": 1, "G": 1,
+                       "d": 1}}, "no link 'nope'"), ([1, 2], "beams must be a mapping")):
+        content["beams"] = bad
+        side.write_text(yaml.safe_dump(content))
+        with pytest.raises(MalformedURDFError, match=match):
+            Mechanism.from_urdf(src / "robot.urdf", side)

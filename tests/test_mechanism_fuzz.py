@@ -40,7 +40,7 @@ def _answers(call) -> object:
 
 
 @pytest.mark.parametrize(("key", "value"), list(itertools.product(
-    ["closed_loop", "type", "name_mot", "joint_name", "joint_type", "bogus"], BAD)))
+    ["closed_loop", "type", "name_mot", "joint_name", "joint_type", "beams", "bogus"], BAD)))
 def test_every_sidecar_key_with_a_wrong_value(tmp_path, key, value):
     content = _good()
     content[key] = value

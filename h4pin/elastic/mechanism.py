@@ -259,7 +259,8 @@ class Mechanism:
         """A URDF and its closed-loop sidecar (YAML: ``closed_loop``, ``type``, ``name_mot``,
         ``joint_name``/``joint_type``; default: the URDF's path with ``.yaml``), as Gepetto's
         loader builds them (:mod:`h4pin.elastic.sidecar`: the joint conversions applied before
-        the closures are built); ``actuated`` overrides ``name_mot``; ``free_flyer``: the root on
+        the closures are built), and the sidecar's ``beams:`` as flexible links
+        (:meth:`with_beams`); ``actuated`` overrides ``name_mot``; ``free_flyer``: the root on
         a free-flyer joint (legged robots; held in :meth:`compliance` and :meth:`modes` unless
         freed). The reference configuration is Pinocchio's neutral one; a joint's range is the
         URDF's ``lower``..``upper`` where they differ (URDF's default 0..0 states none).
@@ -282,7 +283,13 @@ class Mechanism:
         except ParameterError as exc:
             raise MalformedURDFError(str(exc)) from None
         ranges = _urdf_ranges(model)
-        return cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model), ranges=ranges)
+        mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model), ranges=ranges)
+        if side.beams:
+            try:
+                return mech.with_beams(side.beams)
+            except ParameterError as exc:
+                raise MalformedURDFError(f"{side.path}: beams: {exc}") from None
+        return mech
 
     @classmethod
     def from_elastic(cls, em: Any) -> Mechanism:

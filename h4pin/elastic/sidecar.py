@@ -9,6 +9,9 @@ Gepetto's ``example-parallel-robots`` publishes each robot as ``robot.urdf`` (a 
 * ``type``: ``3D`` (a point contact, ``CONTACT_3D``) or ``6D`` (a weld, ``CONTACT_6D``) per pair,
   either case;
 * ``name_mot``: the motor joints;
+* ``beams`` (optional, h4pin's own key): flexible links, ``{link: {E:, G:, d:}}`` for a round
+  section or the six values ``E, G, A, Iy, Iz, J``, with ``to:`` and ``carry:`` where needed
+  (:class:`h4pin.elastic.Beam`);
 * ``joint_name`` / ``joint_type`` (optional): joints the loader replaces before it closes the
   loops, because a URDF has no ball or universal joint: ``SPHERICAL`` (a ball joint at the same
   place), ``UJOINT_ab`` (a universal joint: a hinge about axis a then one about axis b, each of X,
@@ -35,7 +38,9 @@ from h4pin.errors import MalformedURDFError, MechanismWarning
 #: The joint conversions the toolbox's loader accepts (``joint_type``).
 JOINT_TYPES = ("SPHERICAL", "FIXED") + tuple(f"UJOINT_{a}{b}" for a in "XYZ" for b in "XYZ" if a != b)
 #: The keys a sidecar may hold.
-KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type")
+KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type", "beams")
+#: A ``beams:`` entry's keys: a round section (``E``, ``G``, ``d``) or the six values; ``to``, ``carry``.
+BEAM_KEYS = ("E", "G", "d", "A", "Iy", "Iz", "J", "to", "carry")
 _HINGE = {"X": pin.JointModelRX, "Y": pin.JointModelRY, "Z": pin.JointModelRZ}
 
 
@@ -50,6 +55,7 @@ class Sidecar:
     types: tuple[str, ...]
     motors: tuple[str, ...]
     joints: Mapping[str, str]
+    beams: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def _strings(path: str, key: str, value: Any) -> tuple[str, ...]:
@@ -105,7 +111,45 @@ def parse(content: Any, path: str = "sidecar") -> Sidecar:
             raise MalformedURDFError(f"{path}: joint_type {kind!r} (known: {', '.join(JOINT_TYPES)})")
     if len(set(names)) != len(names):
         raise MalformedURDFError(f"{path}: joint_name names a joint twice")
-    return Sidecar(path, tuple(loops), tuple(types), motors, dict(zip(names, kinds_j, strict=True)))
+    return Sidecar(path, tuple(loops), tuple(types), motors, dict(zip(names, kinds_j, strict=True)),
+                   _beams(path, content.get("beams", {})))
+
+
+def _beams(path: str, value: Any) -> dict[str, Any]:
+    """The ``beams:`` key: ``{link: {E:, G:, d:}}`` (a round section) or ``{link: {E:, G:, A:, Iy:,
+    Iz:, J:}}``, each with an optional ``to:`` and ``carry:``; as :class:`h4pin.elastic.Beam`."""
+    from h4pin.elastic.beams import Beam
+    from h4pin.errors import ParameterError
+
+    if value is None or value == {}:
+        return {}
+    if not isinstance(value, Mapping):
+        raise MalformedURDFError(f"{path}: beams must be a mapping {{link: {{E:, G:, d:}}}}, got {value!r}")
+    out = {}
+    for link, spec in value.items():
+        if not isinstance(link, str) or not isinstance(spec, Mapping):
+            raise MalformedURDFError(f"{path}: beams: {link!r} must map to {{E:, G:, d:}} or the six values, "
+                                     f"got {spec!r}")
+        unknown = [k for k in spec if k not in BEAM_KEYS]
+        if unknown:
+            raise MalformedURDFError(f"{path}: beams: {link}: unknown key {unknown[0]!r} "
+                                     f"(known: {', '.join(BEAM_KEYS)})")
+        extra = {"to": spec.get("to"), "carry": tuple(spec.get("carry", ()) or ())}
+        try:
+            if "d" in spec:
+                if any(k in spec for k in ("A", "Iy", "Iz", "J")):
+                    raise ParameterError("give d (a round section) or A, Iy, Iz, J, not both")
+                beam = Beam.circle(spec["d"], spec.get("E"), spec.get("G"), to=extra["to"])
+                beam = dataclasses.replace(beam, carry=extra["carry"])
+            else:
+                missing = [k for k in ("E", "G", "A", "Iy", "Iz", "J") if k not in spec]
+                if missing:
+                    raise ParameterError(f"missing {', '.join(missing)} (or give d for a round section)")
+                beam = Beam(*(spec[k] for k in ("E", "G", "A", "Iy", "Iz", "J")), **extra)
+        except (ParameterError, TypeError) as exc:
+            raise MalformedURDFError(f"{path}: beams: {link}: {exc}") from None
+        out[link] = beam
+    return out
 
 
 def read(path: str | Path) -> Sidecar:
