@@ -26,6 +26,7 @@ import os
 import platform
 import resource
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -306,9 +307,14 @@ def main() -> None:
                         help="only time first use: each row in a fresh process with an empty numba cache")
     parser.add_argument("--pareto", type=int, default=0, metavar="DESIGNS",
                         help="also time the frequency-workspace-compliance Pareto sweep of this many designs")
+    parser.add_argument("--mechanisms", action="store_true",
+                        help="only the generic engine's rows: corpus robots, a plain KKT loop, Mechanism, with beams")
     parser.add_argument("--all", action="store_true",
                         help="every row of the release note in one run: the table, --pareto 100000 and --cold")
     args = parser.parse_args()
+    if args.mechanisms:
+        mechanism_rows(args.repeat)
+        return
     if args.cold and not args.all:
         cold_table()
         return
@@ -556,6 +562,70 @@ else:
     sys.argv = ['-c']
     exec(compile(args[1], '<bench>', 'exec'), {'__name__': '__main__'})
 """
+
+
+def mechanism_rows(repeat: int) -> None:
+    """us a configuration of h4pin.elastic.Mechanism.compliance on robots of the corpus, beside the
+    plain loop a user would write (Pinocchio's Jacobians, one dense KKT solve), and with a beam on
+    every link (Mechanism.with_beams)."""
+    robots = Path(__file__).resolve().parent.parent / "tests" / "robots"
+    print(f"{'robot':<22}{'nv':>5}{'plain KKT us':>14}{'Mechanism us':>14}{'ratio':>8}{'with beams us':>15}"
+          f"{'beams':>7}")
+    for name in ("5bar_linkage_iso3d", "robot_delta", "cassie_like", "digit_like", "digit_like_2legs", "wl16_like"):
+        nv, t_plain, t_mech, t_flex, n_beams = _mechanism_row(robots / name / "robot.urdf", repeat)
+        print(f"{name:<22}{nv:>5}{t_plain * 1e6:>14,.0f}{t_mech * 1e6:>14,.0f}{t_mech / t_plain:>8.2f}"
+              f"{t_flex * 1e6:>15,.0f}{n_beams:>7}")
+
+
+def _mechanism_row(urdf: Path, repeat: int) -> tuple[int, float, float, float, int]:
+    import warnings
+
+    import pinocchio as pin
+
+    from h4pin.elastic import Beam, Mechanism
+    from h4pin.errors import H4Error, MechanismWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        mech = Mechanism.from_urdf(urdf)
+        q = mech.assemble()
+    model = mech.model
+    springs = {model.names[j]: 100.0 for j in range(1, model.njoints)}
+    out = mech.constraint_models[0]
+    frame = next(f.name for f in model.frames if f.parentJoint == out.joint1_id)
+    fid = model.getFrameId(frame)
+    d = model.createData()
+    k = np.full(model.nv, 100.0)
+    cds = [cm.createData() for cm in mech.constraint_models]
+
+    def plain() -> np.ndarray:
+        pin.computeJointJacobians(model, d, q)
+        pin.updateFramePlacements(model, d)
+        for cm, cd in zip(mech.constraint_models, cds, strict=True):
+            cm.calc(model, d, cd)
+        a = pin.getConstraintsJacobian(model, d, mech.constraint_models, cds)
+        _, sv, vt = np.linalg.svd(a, full_matrices=False)
+        a = vt[sv > 1e-10 * sv[0]]
+        jo = pin.getFrameJacobian(model, d, fid, pin.LOCAL_WORLD_ALIGNED)
+        n = a.shape[0]
+        sol = np.linalg.solve(np.block([[np.diag(k), a.T], [a, np.zeros((n, n))]]), np.vstack([jo.T, np.zeros((n, 6))]))
+        return jo @ sol[:model.nv]
+
+    tube = Beam.tube(0.025, 0.002, E=70e9, G=26e9)
+    beams, seen = {}, set()
+    for f in model.frames:
+        if f.type == pin.FrameType.BODY and f.parentJoint > 0 and f.parentJoint not in seen:
+            seen.add(f.parentJoint)
+            try:
+                mech.with_beams({f.name: tube})
+                beams[f.name] = tube
+            except H4Error:
+                pass
+    flex = mech.with_beams(beams)
+    t_plain = best_of(repeat, lambda: [plain() for _ in range(20)]) / 20
+    t_mech = best_of(repeat, lambda: [mech.compliance(q, springs, [frame]) for _ in range(20)]) / 20
+    t_flex = best_of(repeat, lambda: [flex.compliance(q, springs, [frame]) for _ in range(20)]) / 20
+    return model.nv, t_plain, t_mech, t_flex, len(beams)
 
 
 def cold_run(args: list[str], mode: str) -> tuple[float, str, float]:
