@@ -38,7 +38,18 @@ stiffness          1e-6 to 1e25         kc (N.m/rad), E, G, Eb (Pa); a near-rigi
 second moment      1e-24 to 1e3 m^4     I, I0 of the forearm section (same: a stand-in passes)
 section            1e-12 to 1 m^2       Sb of a bar
 stressed fraction  1e-6 to 1            forearm_stressed_fraction
+com offset         abs(c) <= 10 m       a payload's centre of mass from D (the robot spans ~1 m)
+payload inertia    0 to 1e3 kg.m^2      a payload's principal moments
+element m/N        0, or 1e-15 to 1e-2  a joint's or mount's compliance (0: off); 10 mm/N is
+                                        a rubber mount, 1e-15 a near-rigid stand-in
+element rad/(N.m)  0, or 1e-15 to 1     a shaft's or mount's rotational compliance (0: off)
+element N.m^2      1e-6 to 1e12, or inf a link's EI or GJ (inf: rigid, off); 1e12 is a steel
+                                        beam a metre deep, 1e-6 a strand of hair
 =================  ===================  ==================================================
+
+:data:`ELEMENT_RANGES` holds the element rows, by the kind's unit (checked by
+:func:`h4pin.description.elements.check_elements`: making :class:`h4pin.Elements`, reading a URDF,
+unpickling a robot).
 """
 
 from __future__ import annotations
@@ -222,11 +233,18 @@ RANGES: dict[str, tuple[float, float, str, str]] = {
     "load": (-1e6, 1e6, "N", "a force component at D"),
     "torque": (-1e5, 1e5, "N.m", "a torque component at D"),
     "payload": (0.0, 1e3, "kg", "a point payload at D"),
+    "com offset": (-10.0, 10.0, "m", "a payload's centre of mass from D"),
+    "payload inertia": (0.0, 1e3, "kg.m^2", "a payload's principal moments"),
     "exaggeration": (1e-300, 1e6, "", "a factor on the drawn deflection"),
     "scale": (1e-9, 1e9, "mm per um/N", "the ellipsoid scale"),
     "cycle_time": (1e-3, 1e6, "s", "the cycle time"),
 }
 #: Spring datum (h4pin.H4Params / URDF field) -> (low, high, unit).
+#: Plausible ranges of the element data (:class:`h4pin.Elements`) by unit; 0 (a compliance) and
+#: inf (a rigidity) switch an element off and are always allowed.
+ELEMENT_RANGES: dict[str, tuple[float, float]] = {"m/N": (1e-15, 1e-2), "rad/(N.m)": (1e-15, 1.0),
+                                                  "N.m^2": (1e-6, 1e12)}
+
 SPRING_RANGES: dict[str, tuple[float, float, str]] = {
     "kc": (1e-6, 1e25, "N.m/rad"), "E": (1e-6, 1e25, "Pa"), "G": (1e-6, 1e25, "Pa"), "Eb": (1e-6, 1e25, "Pa"),
     "I": (1e-24, 1e3, "m^4"), "I0": (1e-24, 1e3, "m^4"), "Sb": (1e-12, 1.0, "m^2"),
@@ -290,6 +308,7 @@ def warn_non_finite(what: str, bad: int, total: int, hint: str = "") -> None:
                       NonFiniteResultWarning, stacklevel=3)
 
 
-__all__ = ["GiB", "MEMORY_ENV", "MEMORY_FRACTION", "RANGES", "SPRING_RANGES", "TIME_ENV", "ImplausibleValueError",
+__all__ = ["ELEMENT_RANGES", "GiB", "MEMORY_ENV", "MEMORY_FRACTION", "RANGES", "SPRING_RANGES", "TIME_ENV",
+           "ImplausibleValueError",
            "NonFiniteResultWarning", "TooLargeError", "available_memory", "check_cycle_samples", "check_range",
            "check_size", "check_springs", "fmt_bytes", "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]

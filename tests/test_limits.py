@@ -289,3 +289,68 @@ def test_a_zero_frequency_is_a_named_warning(proto, centre, monkeypatch):
         monkeypatch.undo()
         f, status = frequency.first_frequency(proto, np.tile(centre, (2, 1)))
         assert np.all(np.isfinite(f) & (f > 0))
+
+
+def test_elements_have_plausible_ranges_everywhere_they_enter():
+    """Element data outside h4pin.limits.ELEMENT_RANGES are refused where Elements are made, where
+    a URDF is read and where a pickle is loaded; an unknown kind names the kinds; 0 and inf (off)
+    pass."""
+    import pickle
+
+    import h4pin
+    from h4pin.description.elements import Elements
+    from h4pin.limits import ImplausibleValueError
+
+    for kwargs, match in (({"forearm_out_EI": 1e-300}, r"forearm 1: forearm_out_EI = 1e-300 N.m\^2 is outside"),
+                          ({"revolute_tilt": 1e300}, r"revolute_tilt = 1e\+300"),
+                          ({"ball_radial": [0.0] * 7 + [0.5]}, r"bar 42: ball_radial = 0.5 m/N"),
+                          ({"central_EI": [1e13, np.inf]}, "central_EI = 1e\\+13")):
+        with pytest.raises(ImplausibleValueError, match=match):
+            Elements(**kwargs)
+    with pytest.raises(h4pin.ParameterError, match="no element kind 'bogus' .*forearm_out_EI"):
+        Elements(bogus=1)
+    assert Elements(revolute_tilt=0.0, forearm_out_EI=np.inf).off
+    h4 = h4pin.load("prototype")
+    text = h4.urdf.replace('stressed_fraction="1.0"/>', 'stressed_fraction="1.0" out_EI="1e-30"/>')
+    with pytest.raises(ImplausibleValueError, match=r"forearm link 'forearm_1' .*out_EI.* 1e-30"):
+        h4pin.load(text)
+    # a pickle rebuilds its elements through the constructor: what it carries is checked like new data
+    good = Elements(forearm_out_EI=1120.0)
+    assert pickle.loads(pickle.dumps(good)).allclose(good)
+    func, (values,) = good.__reduce__()
+    values["forearm_out_EI"] = np.full(4, 1e-30)  # as a pickle written by another version could hold
+    with pytest.raises(ImplausibleValueError):
+        func(values)
+
+
+def test_payloads_are_typed_and_ranged():
+    from h4pin.elastic import Payload
+    from h4pin.limits import ImplausibleValueError
+
+    with pytest.raises(h4pin_errors().ParameterError, match="not text"):
+        Payload("0.5")
+    for args, match in (((0.5, (1e8, 0, 0)), "payload com = 1e\\+08 m"), ((1e12,), "payload mass = 1e\\+12 kg"),
+                        ((0.5, (0, 0, 0), np.eye(3) * 1e30), "principal moments\\) = 1e\\+30")):
+        with pytest.raises(ImplausibleValueError, match=match):
+            Payload(*args)
+    assert Payload(0.5, (0.01, 0.0, 0.02)).mass == 0.5
+
+
+def test_mechanism_outputs_are_checked():
+    import math
+
+    from h4pin.elastic import FrameOutput, JointOutput
+
+    err = h4pin_errors().ParameterError
+    with pytest.raises(err, match="scale must be a finite non-zero number, got nan"):
+        JointOutput("mot1", math.nan)
+    with pytest.raises(err, match="rows must be indices 0 to 5, got \\(7,\\)"):
+        FrameOutput("D", rows=(7,))
+    with pytest.raises(err, match="reference must be pin.LOCAL"):
+        FrameOutput("D", reference="bogus")
+
+
+def h4pin_errors():
+    import h4pin.errors
+
+    return h4pin.errors

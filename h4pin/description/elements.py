@@ -155,12 +155,23 @@ def check_elements(values: dict[str, Any], error: type[Exception] = ParameterErr
             owner = owners[name][k] if owners else element_name(name, k)
             rule = "> 0; inf switches it off" if rigidity else "finite and >= 0; 0 switches it off"
             raise error(f"{prefix}{owner}: {name} = {float(arr[k])!r} is not physical (must be {rule})")
+        from h4pin.limits import ELEMENT_RANGES, ImplausibleValueError
+
+        lo, hi = ELEMENT_RANGES[UNITS[name]]
+        odd = (arr != 0.0) & np.isfinite(arr) & ((arr < lo) | (arr > hi))
+        if np.any(odd):
+            k = int(np.argmax(odd))
+            owner = owners[name][k] if owners else element_name(name, k)
+            off = "inf" if rigidity else "0"
+            raise ImplausibleValueError(f"{prefix}{owner}: {name} = {float(arr[k]):g} {UNITS[name]} is outside the "
+                                        f"plausible range [{lo:g}, {hi:g}] {UNITS[name]} ({off} switches it off; "
+                                        "h4pin.limits.ELEMENT_RANGES)")
         arr.setflags(write=False)
         out[name] = arr
     return out
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(frozen=True, eq=False, init=False)
 class Elements:
     """Data of the neglected elements, SI, per element (all off by default).
 
@@ -195,6 +206,18 @@ class Elements:
     base_rotation: Any = 0.0
     forearm_out_EI: Any = np.inf
 
+    def __init__(self, **values: Any) -> None:
+        unknown = [n for n in values if n not in ELEMENTS]
+        if unknown:
+            raise ParameterError(f"Elements: no element kind {unknown[0]!r} (kinds: {', '.join(ELEMENTS)})")
+        for k in KINDS:
+            object.__setattr__(self, k.name, values.get(k.name, np.inf if k.rigidity else 0.0))
+        self.__post_init__()
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Unpickled (and deep-copied) through the constructor: checked like new ones."""
+        return (_elements, ({n: np.array(getattr(self, n)) for n in ELEMENTS},))
+
     def __post_init__(self) -> None:
         checked = check_elements({n: getattr(self, n) for n in ELEMENTS})
         for name, value in checked.items():
@@ -213,6 +236,11 @@ class Elements:
     def allclose(self, other: Elements, rtol: float = 1e-15) -> bool:
         """Every element equal to ``other``'s within ``rtol`` (relative; ``inf`` equals ``inf``)."""
         return all(np.allclose(getattr(self, n), getattr(other, n), rtol=rtol, atol=0.0) for n in ELEMENTS)
+
+
+def _elements(values: dict[str, Any]) -> Elements:
+    """:class:`Elements` from its fields (the pickle path)."""
+    return Elements(**values)
 
 
 #: Plate rods of the generated URDF: solid aluminium rounds of radius 8 mm (E = 70 GPa,

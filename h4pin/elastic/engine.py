@@ -99,6 +99,24 @@ class FrameOutput:
     rows: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
     kind: Any = None
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.frame, str) or not self.frame:
+            raise ParameterError(f"FrameOutput: frame must be a frame's name, got {self.frame!r}")
+        frames = (pin.LOCAL, pin.WORLD, pin.LOCAL_WORLD_ALIGNED)
+        if not any(self.reference is r or (type(self.reference) is type(r) and self.reference == r) for r in frames):
+            raise ParameterError(f"FrameOutput: reference must be pin.LOCAL, pin.WORLD or pin.LOCAL_WORLD_ALIGNED, "
+                                 f"got {self.reference!r}")
+        rows = self.rows
+        if isinstance(rows, (str, bytes)) or not hasattr(rows, "__iter__"):
+            raise ParameterError(f"FrameOutput: rows must be indices 0 to 5, got {rows!r}")
+        rows = tuple(rows)
+        if not rows or any(isinstance(r, bool) or not isinstance(r, (int, np.integer)) or not 0 <= r <= 5
+                           for r in rows):
+            raise ParameterError(f"FrameOutput: rows must be indices 0 to 5, got {self.rows!r}")
+        object.__setattr__(self, "rows", tuple(int(r) for r in rows))
+        if self.kind is not None and not isinstance(self.kind, pin.FrameType):
+            raise ParameterError(f"FrameOutput: kind must be a pin.FrameType or None, got {self.kind!r}")
+
 
 @dataclasses.dataclass(frozen=True)
 class JointOutput:
@@ -107,6 +125,15 @@ class JointOutput:
 
     joint: str
     scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.joint, str) or not self.joint:
+            raise ParameterError(f"JointOutput: joint must be a joint's name, got {self.joint!r}")
+        s = self.scale
+        if isinstance(s, bool) or not isinstance(s, (int, float, np.integer, np.floating)) or not math.isfinite(s) \
+                or s == 0:
+            raise ParameterError(f"JointOutput: scale must be a finite non-zero number, got {s!r}")
+        object.__setattr__(self, "scale", float(s))
 
 
 Output = FrameOutput | JointOutput

@@ -71,6 +71,11 @@ class Payload:
     inertia: Any = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
 
     def __post_init__(self) -> None:
+        from h4pin import limits
+
+        if isinstance(self.mass, (str, bytes)) or any(isinstance(v, (str, bytes)) for v in
+                                                      np.asarray(self.com, dtype=object).reshape(-1)):
+            raise ParameterError(f"payload: mass and com must be numbers (kg, m), not text, got {self!r}")
         try:
             mass = float(self.mass)
             com = np.array(self.com, dtype=float)
@@ -86,7 +91,10 @@ class Payload:
         scale = max(float(np.abs(inertia).max()), 1e-300)
         if np.abs(inertia - inertia.T).max() > 1e-12 * scale:
             raise ParameterError(f"payload inertia must be symmetric, got {inertia.tolist()}")
+        limits.check_range("payload mass", mass, "payload")
+        limits.check_range("payload com", com, "com offset")
         principal = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
+        limits.check_range("payload inertia (principal moments)", np.clip(principal, 0.0, None), "payload inertia")
         a, b, c = principal
         if principal[0] < -1e-12 * scale or a + b < c - 1e-12 * scale:
             raise ParameterError("payload inertia must be positive semi-definite and obey the triangle inequality "
