@@ -217,6 +217,25 @@ CYCLE_BYTES_PER_SAMPLE = 12_500
 CYCLE_SAMPLES_PER_S = 500.0
 
 
+#: The elastic cycle (h4pin.studies.elastic_cycle.run), per sample of the motion: its springs'
+#: mass, velocity and stiffness matrices (16 x 16 each), output map and loads (about 7 kB; 10 kB
+#: with the Newmark work), at about 70 samples/s on this machine (rounded down: 50); per sample of
+#: the stop after it: the same arrays repeated, integrated at about 1e4 samples/s (5e3).
+ELASTIC_BYTES_PER_SAMPLE = 10_000
+ELASTIC_SAMPLES_PER_S = 50.0
+ELASTIC_STOP_SAMPLES_PER_S = 5e3
+
+
+def check_elastic_cycle(samples: int, stop: int, payloads: int = 1) -> None:
+    """Refuse an elastic cycle of ``samples`` motion samples and ``stop`` samples of the stop
+    after it (for ``payloads`` payloads, one after the other) that does not fit in memory or
+    time (:func:`check_size`)."""
+    n, m = count(samples), count(stop)
+    check_size(f"elastic cycle: {n:,} samples and {m:,} of the stop", (n + m + 1) * ELASTIC_BYTES_PER_SAMPLE,
+               payloads * (n / ELASTIC_SAMPLES_PER_S + m / ELASTIC_STOP_SAMPLES_PER_S),
+               "use fewer samples or a shorter hold, or a longer cycle time (the stop is sampled at the cycle's step)")
+
+
 def check_cycle_samples(samples: int, payloads: int = 1) -> None:
     """Refuse a cycle of ``samples`` time steps (for ``payloads`` payloads, one after the other)
     that does not fit in memory (:data:`CYCLE_BYTES_PER_SAMPLE`, :func:`check_size`)."""
@@ -239,11 +258,11 @@ RANGES: dict[str, tuple[float, float, str, str]] = {
     "scale": (1e-9, 1e9, "mm per um/N", "the ellipsoid scale"),
     "cycle_time": (1e-3, 1e6, "s", "the cycle time"),
 }
-#: Spring datum (h4pin.H4Params / URDF field) -> (low, high, unit).
 #: Plausible ranges of the element data (:class:`h4pin.Elements`) by unit; 0 (a compliance) and
 #: inf (a rigidity) switch an element off and are always allowed.
 ELEMENT_RANGES: dict[str, tuple[float, float]] = {"m/N": (1e-15, 1e-2), "rad/(N.m)": (1e-15, 1.0),
                                                   "N.m^2": (1e-6, 1e12)}
+#: Spring datum (h4pin.H4Params / URDF field) -> (low, high, unit).
 
 SPRING_RANGES: dict[str, tuple[float, float, str]] = {
     "kc": (1e-6, 1e25, "N.m/rad"), "E": (1e-6, 1e25, "Pa"), "G": (1e-6, 1e25, "Pa"), "Eb": (1e-6, 1e25, "Pa"),
@@ -308,7 +327,7 @@ def warn_non_finite(what: str, bad: int, total: int, hint: str = "") -> None:
                       NonFiniteResultWarning, stacklevel=3)
 
 
-__all__ = ["ELEMENT_RANGES", "GiB", "MEMORY_ENV", "MEMORY_FRACTION", "RANGES", "SPRING_RANGES", "TIME_ENV",
-           "ImplausibleValueError",
-           "NonFiniteResultWarning", "TooLargeError", "available_memory", "check_cycle_samples", "check_range",
-           "check_size", "check_springs", "fmt_bytes", "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]
+__all__ = ["ELEMENT_RANGES", "GiB", "ImplausibleValueError", "MEMORY_ENV", "MEMORY_FRACTION",
+           "NonFiniteResultWarning", "RANGES", "SPRING_RANGES", "TIME_ENV", "TooLargeError", "available_memory",
+           "check_cycle_samples", "check_elastic_cycle", "check_range", "check_size", "check_springs", "fmt_bytes",
+           "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]

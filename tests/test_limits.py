@@ -354,3 +354,29 @@ def h4pin_errors():
     import h4pin.errors
 
     return h4pin.errors
+
+
+def test_the_new_batch_paths_estimate_their_size_and_time(monkeypatch):
+    """h4pin.modes over a billion (broadcast) poses and the elastic cycle with a billion samples
+    or a stop of 1e9 s are refused in a line before allocating; a 1 ms cycle's 600 000-sample stop
+    is in the time estimate (H4PIN_TIME_LIMIT=10 refuses it at once); a 1e-9 s period and a robot
+    given by name are typed errors."""
+    import h4pin
+    from h4pin.kinematics.closed_form import centre_pose
+    from h4pin.limits import ImplausibleValueError, TooLargeError
+    from h4pin.studies import elastic_cycle as ec
+
+    h4 = h4pin.load("prototype")
+    with pytest.raises(TooLargeError, match="modes: 1,000,000,000 poses"):
+        h4pin.modes(h4, np.broadcast_to(centre_pose(h4), (10**9, 4)))
+    with pytest.raises(TooLargeError, match="elastic cycle: 1,000,000,000 samples"):
+        ec.run(h4, samples=10**9)
+    with pytest.raises(TooLargeError, match="of the stop"):
+        ec.run(h4, hold=1e9)
+    with pytest.raises(ImplausibleValueError, match="period = 1e-09 s"):
+        ec.run(h4, period=1e-9)
+    with pytest.raises(h4pin.ParameterError, match="must be an h4pin.H4"):
+        ec.run("prototype")
+    monkeypatch.setenv("H4PIN_TIME_LIMIT", "10")
+    with pytest.raises(TooLargeError, match="600,000 of the stop"):
+        ec.run(h4, period=0.001, hold=1.5, samples=400)

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.elastic import engine
 from h4pin.elastic.h4 import elastic_model
 from h4pin.elastic.modal import _admissible, mass_model
@@ -377,10 +378,15 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     Raises:
         ParameterError: a bad argument. UnreachablePoseError, SingularPoseError: as the cycle.
     """
+    if not isinstance(h4, H4):
+        raise ParameterError(f"h4 must be an h4pin.H4 (h4pin.load(...)), got {type(h4).__name__} {h4!r:.60}")
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
         raise ParameterError(f"samples must be an integer >= 8, got {samples!r}")
     damping = rigid._positive("damping", damping, zero=True, unit=" (s)")
     hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
+    limits.check_range("period", period, "cycle_time")
+    n_stop = math.ceil(hold / (float(period) / samples)) if hold < math.inf else math.inf
+    limits.check_elastic_cycle(int(samples), n_stop if n_stop < 1e18 else 10**18)
     o = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
         raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
