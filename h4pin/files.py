@@ -7,10 +7,13 @@ one left by a process that was killed (its pid is gone) is removed the next time
 written to that target (:func:`clean_stale`). :func:`check_output` refuses an output path that
 cannot be written, before any work is done.
 
-The rule for existing outputs: a file is replaced (atomically) only if h4pin wrote it
-(:func:`written_by_h4pin`: every kind of file it writes carries a marker, see :data:`MARKER`) or
-the user says so (``--overwrite``, :func:`check_replace`); a folder is never replaced or written
-into unless it is a store h4pin made for the same job (a sweep resumes its own store).
+The rule for existing outputs: a file is replaced (atomically) only if h4pin wrote it and it is
+unchanged since (:func:`written_by_h4pin`: a text file carries a comment with the SHA-256 of the
+rest of its content, a PNG or NetCDF file a marker, see :data:`MARKER`) or the user says so
+(``--overwrite``, :func:`check_replace`); a folder is never replaced or written into unless it
+is a store h4pin made for the same job (a sweep resumes its own store). Files the project ships
+(``urdf/``, ``mjcf/``) carry no marker: a copy a user edits is the user's. Something at an output
+path that is neither a file nor a folder (a FIFO, a device) is refused at once.
 """
 
 from __future__ import annotations
@@ -27,14 +30,13 @@ from typing import Any
 from h4pin.errors import ParameterError
 
 TMP_TAG = "h4pin-tmp"
-#: What marks a file as h4pin's: in a comment of a text file (MJCF and URDF: their second line;
-#: an HTML page: a comment after its doctype, :func:`write_text`), in a ``Comment`` text chunk of
-#: a PNG (:func:`save_figure`); a NetCDF (HDF5) file or a zarr store carries an ``h4pin``
-#: attribute instead (what it holds: ``atlas``, ``sweep``).
+#: What marks a binary file as h4pin's: a ``Comment`` text chunk of a PNG (:func:`save_figure`);
+#: a NetCDF (HDF5) file or a zarr store carries an ``h4pin`` attribute instead (what it holds:
+#: ``atlas``, ``sweep``). A text file carries the digest comment of :func:`write_text`.
 MARKER = "written by h4pin"
-#: The legend box of a viewer page (:meth:`h4pin.io.viewer.Scene.html`): pages written before the
-#: comment carry it near their end.
-_PAGE_MARKER = 'id="h4pin-legend"'
+#: A text output's marker: a comment holding the SHA-256 (hex) of the text without this comment;
+#: an edited file no longer matches and is the user's (:func:`written_by_h4pin`).
+_DIGEST = re.compile(r"<!-- written by h4pin, unchanged if sha256 ([0-9a-f]{64}) -->")
 _PNG = b"\x89PNG\r\n\x1a\n"
 _HDF5 = b"\x89HDF\r\n\x1a\n"
 
@@ -78,9 +80,24 @@ def check_output(path: str | Path, what: str, *, folder: bool = False, suffixes:
     unwritable folder (tried by writing a probe file there), a folder where a file is wanted
     (``folder=False``) or a file where a folder is wanted. ``what`` names the option or argument
     in the message (:class:`h4pin.ParameterError`)."""
-    path = Path(path)
+    try:
+        return _check_output(Path(path), what, folder, suffixes)
+    except ParameterError:
+        raise
+    except OSError as exc:  # a name too long, a name the file system cannot encode, ...
+        raise ParameterError(f"{what} {path!s:.200}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+    except (UnicodeError, ValueError) as exc:
+        raise ParameterError(f"{what} {path!r:.200}: not a usable file name ({exc})") from None
+
+
+def _check_output(path: Path, what: str, folder: bool, suffixes: tuple[str, ...]) -> Path:
+    if not str(path) or str(path) in (".", ""):
+        raise ParameterError(f"{what}: give a file name (got an empty one)")
     if suffixes and path.suffix not in suffixes:
         raise ParameterError(f"{what} {path}: the name must end in {' or '.join(suffixes)}")
+    if path.exists() and not (path.is_file() or path.is_dir()):
+        raise ParameterError(f"{what} {path} is neither a file nor a folder (a FIFO, a device or a socket): "
+                             "give the path of a file to write")
     if not folder and path.is_dir():
         raise ParameterError(f"{what} {path} is a folder: give the path of the file to write")
     if folder and path.exists() and not path.is_dir():
@@ -133,20 +150,23 @@ def _hdf5_marked(path: Path) -> bool:
 
 
 def written_by_h4pin(path: str | Path) -> bool:
-    """Whether h4pin wrote ``path``, told from the file itself (its suffix does not matter): a PNG
-    with :data:`MARKER` in a text chunk, a NetCDF4 (HDF5) file or a zarr store with an ``h4pin``
-    attribute, a text file (MJCF, URDF, HTML) with :data:`MARKER` in its first 4 KiB or, for a
-    viewer page, its legend box in its last 64 KiB. A symbolic link is never h4pin's."""
+    """Whether h4pin wrote ``path`` and it is unchanged since, told from the file itself (its
+    suffix does not matter): a text file (MJCF, URDF, HTML) whose first 4 KiB hold the digest
+    comment of :func:`write_text` matching the rest of its content; a PNG with :data:`MARKER` in
+    a text chunk; a NetCDF4 (HDF5) file or a zarr store with an ``h4pin`` attribute. A symbolic
+    link, or anything that is not a regular file or folder, is never h4pin's."""
     path = Path(path)
-    if path.is_symlink() or not path.exists():
-        return False
-    if path.is_dir():
-        for meta in ("zarr.json", ".zattrs"):
-            f = path / meta
-            if f.is_file() and '"h4pin"' in f.read_text(encoding="utf-8", errors="replace"):
-                return True
-        return False
     try:
+        if path.is_symlink() or not path.exists():
+            return False
+        if path.is_dir():
+            for meta in ("zarr.json", ".zattrs"):
+                f = path / meta
+                if f.is_file() and '"h4pin"' in f.read_text(encoding="utf-8", errors="replace"):
+                    return True
+            return False
+        if not path.is_file():
+            return False
         with open(path, "rb") as f:
             head = f.read(4096)
             if head.startswith(_PNG):
@@ -154,12 +174,26 @@ def written_by_h4pin(path: str | Path) -> bool:
                 return _png_marked(f)
             if head.startswith(_HDF5):
                 return _hdf5_marked(path)
-            if MARKER.encode() in head:
-                return True
-            f.seek(max(0, f.seek(0, os.SEEK_END) - (1 << 16)))
-            return _PAGE_MARKER.encode() in f.read()
+            m = _DIGEST.search(head.decode("utf-8", errors="replace"))
+            if m is None:
+                return False
+            f.seek(0)
+            body = f.read()
     except OSError:
         return False
+    token = m.group(0).encode()
+    return _sha256(body.replace(token, b"", 1)) == m.group(1)
+
+
+def unmarked(text: str) -> str:
+    """``text`` without the digest comment :func:`write_text` put in it (what was given to write)."""
+    return _DIGEST.sub("", text, count=1)
+
+
+def _sha256(data: bytes) -> str:
+    import hashlib
+
+    return hashlib.sha256(data).hexdigest()
 
 
 def check_replace(path: str | Path, what: str, overwrite: bool = False) -> Path:
@@ -202,14 +236,18 @@ def write_atomic(path: str | Path, write: Callable[[str], Any], suffix: str = ""
 
 
 _DOCTYPE = re.compile(r"\s*<!doctype html[^>]*>", re.IGNORECASE)
+_XML_DECL = re.compile(r"\s*<\?xml[^>]*\?>")
 
 
-def write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically, mode 0644. An HTML page (one that starts with
-    its doctype) gets the comment ``<!-- written by h4pin -->`` after it (:data:`MARKER`)."""
-    m = _DOCTYPE.match(text)
-    if m and MARKER not in text[:4096]:
-        text = f"{text[:m.end()]}<!-- {MARKER} -->{text[m.end():]}"
+def write_text(path: str | Path, text: str, *, mark: bool = True) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically, mode 0644, with (``mark``) a comment holding
+    the SHA-256 of the rest (:func:`written_by_h4pin`): after an XML declaration or an HTML
+    doctype, else first. ``mark=False``: as given (the files the project ships)."""
+    if mark:
+        m = _DOCTYPE.match(text) or _XML_DECL.match(text)
+        at = m.end() if m else 0
+        digest = _sha256(text.encode("utf-8"))
+        text = f"{text[:at]}<!-- written by h4pin, unchanged if sha256 {digest} -->{text[at:]}"
     return write_atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 

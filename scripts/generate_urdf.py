@@ -90,7 +90,7 @@ def check_or_write(files: dict[Path, str], check: bool) -> list[Path]:
         stale.append(path)
         if not check:
             path.parent.mkdir(exist_ok=True)
-            write_text_atomic(path, text)
+            write_text_atomic(path, text, mark=False)  # shipped: no marker (a user's edited copy is theirs)
             print(f"wrote {path.relative_to(URDF_DIR.parent)}")
     return stale
 

@@ -190,16 +190,25 @@ def test_a_user_file_is_kept_unless_overwrite(command, tmp_path):
 
 
 def test_h4pin_tells_its_own_files(tmp_path):
-    """The markers: the MJCF and URDF comments, a page's comment, a PNG text chunk; a file of the
-    same format that h4pin did not write, a link or a missing file is not h4pin's."""
+    """The markers: a text file's digest comment (a page, an MJCF, a URDF), a PNG text chunk; a
+    text file h4pin wrote and the user then edited, the files the project ships (no marker: a
+    copy a user edits is theirs), a file of the same format h4pin did not write, a link, a FIFO
+    or a missing file are not h4pin's."""
+    import os
+
     from matplotlib.figure import Figure
 
     from h4pin.files import save_figure, write_text, written_by_h4pin
 
-    assert written_by_h4pin(ROOT / "urdf" / "h4_prototype.urdf")
-    assert written_by_h4pin(ROOT / "mjcf" / "h4_prototype.xml")
+    assert not written_by_h4pin(ROOT / "urdf" / "h4_prototype.urdf")
+    assert not written_by_h4pin(ROOT / "mjcf" / "h4_prototype.xml")
     page = write_text(tmp_path / "page.txt", "\n <!DOCTYPE html><html><body></body></html>")
-    assert page.read_text().startswith("\n <!DOCTYPE html><!-- written by h4pin -->") and written_by_h4pin(page)
+    assert page.read_text().startswith("\n <!DOCTYPE html><!-- written by h4pin, unchanged if sha256 ")
+    assert written_by_h4pin(page)
+    urdf = write_text(tmp_path / "r.urdf", (ROOT / "urdf" / "h4_prototype.urdf").read_text())
+    assert urdf.read_text().split("?>", 1)[1].startswith("<!-- written by h4pin") and written_by_h4pin(urdf)
+    urdf.write_text(urdf.read_text().replace('kc="7400.0"', 'kc="7500.0"', 1))  # the user edits it
+    assert not written_by_h4pin(urdf)
     fig = Figure()
     fig.subplots().plot([0, 1])
     assert written_by_h4pin(save_figure(fig, tmp_path / "f.png"))
@@ -208,5 +217,29 @@ def test_h4pin_tells_its_own_files(tmp_path):
     fig.savefig(tmp_path / "g.png")  # matplotlib's own
     (tmp_path / "link.png").symlink_to(tmp_path / "f.png")
     (tmp_path / "notes.txt").write_text("<!DOCTYPE html> my page")
-    for other in ("g.png", "link.png", "notes.txt", "missing.png"):
+    os.mkfifo(tmp_path / "fifo.xml")
+    for other in ("g.png", "link.png", "notes.txt", "missing.png", "fifo.xml"):
         assert not written_by_h4pin(tmp_path / other), other
+
+
+def test_odd_output_paths_are_one_line_refusals(tmp_path, monkeypatch, capsys):
+    """A FIFO at the output path (it would block a writer forever), an empty name, a name too
+    long for the file system and a user's edited copy of an h4pin file: exit 2, one line, nothing
+    written or replaced."""
+    import os
+
+    from conftest import run_cli_in_process
+
+    fifo = tmp_path / "pipe.xml"
+    os.mkfifo(fifo)
+    edited = tmp_path / "mine.xml"
+    from h4pin.files import write_text
+
+    write_text(edited, "<?xml version='1.0'?>\n<mujoco/>\n")
+    edited.write_text(edited.read_text() + "<!-- my notes -->\n")
+    before = edited.read_text()
+    for out, match in ((fifo, "neither a file nor a folder"), ("", "give a file name"),
+                       (tmp_path / ("x" * 300 + ".xml"), "File name too long"), (edited, "h4pin did not write it")):
+        code, _, err = run_cli_in_process(["export", "--out", str(out)], monkeypatch, capsys)
+        assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert edited.read_text() == before

@@ -605,6 +605,7 @@ def write_urdf(params: H4Params, path: str | Path, name: str | None = None) -> P
     return write_text_atomic(path, to_urdf(params, name or path.stem))
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` atomically, mode 0644 (:func:`h4pin.files.write_text`)."""
-    return write_text(path, text)
+def write_text_atomic(path: str | Path, text: str, *, mark: bool = True) -> Path:
+    """Write ``text`` to ``path`` atomically, mode 0644 (:func:`h4pin.files.write_text`; ``mark``:
+    with its digest comment, off for the files the project ships)."""
+    return write_text(path, text, mark=mark)
