@@ -672,6 +672,10 @@ def main() -> None:
     except (H4Error, ValueError, FileNotFoundError) as exc:
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
+    except MemoryError:  # the estimates switched off (H4PIN_MEMORY_LIMIT=0), or wrong: still one line
+        typer.echo("error: out of memory: the job does not fit in this machine's memory; make it smaller "
+                   "(fewer poses, samples or designs), or set H4PIN_MEMORY_LIMIT to have it refused up front", err=True)
+        sys.exit(2)
     except KeyboardInterrupt:
         sys.exit(128 + signal.SIGINT)
     except Stopped as stop:

@@ -95,8 +95,8 @@ _SECONDS = {"": 1, "s": 1, "min": 60, "h": 3600, "d": 86400}
 
 def _parse(text: str, units: dict[str, float], env: str, what: str) -> float | None:
     t = text.strip().lower().replace(" ", "")
-    if t in ("", "0", "none", "off", "inf", "unlimited"):
-        return None
+    if t in ("", "none", "off", "inf", "unlimited") or re.fullmatch(r"0*\.?0*(e[+-]?[0-9]+)?", t) and "0" in t:
+        return None  # 0, 0.0, 0e0: no limit
     m = re.fullmatch(r"([0-9.]+(?:e[+-]?[0-9]+)?)([a-z]*)", t)
     if m is None or m.group(2) not in units:
         raise ParameterError(f"{env} must be {what}, got {text!r}")

@@ -380,3 +380,20 @@ def test_the_new_batch_paths_estimate_their_size_and_time(monkeypatch):
     monkeypatch.setenv("H4PIN_TIME_LIMIT", "10")
     with pytest.raises(TooLargeError, match="600,000 of the stop"):
         ec.run(h4, period=0.001, hold=1.5, samples=400)
+
+
+def test_memory_limit_zero_in_any_spelling_and_scheduler_schemes(monkeypatch):
+    """H4PIN_MEMORY_LIMIT 0, 0.0 or 0e0 all mean no limit; a scheduler address in a scheme h4pin
+    cannot use (tls://, ws://) or without a usable port is refused at once, naming it."""
+    from h4pin import limits
+    from h4pin.studies import sweep
+
+    for text in ("0", "0.0", "0e0"):
+        monkeypatch.setenv("H4PIN_MEMORY_LIMIT", text)
+        assert limits.memory_limit()[0] is None
+    monkeypatch.setenv("H4PIN_MEMORY_LIMIT", "8GiB")
+    assert limits.memory_limit()[0] == 8 * 2**30
+    for address, match in (("tls://127.0.0.1:8786", "over tcp:// only .not tls://"), ("ws://127.0.0.1:8786", "not ws://"),
+                           ("tcp://127.0.0.1:port", "port must be a number"), ("", "an address such as")):
+        with pytest.raises(h4pin_errors().ParameterError, match=match):
+            sweep.check_scheduler(address)

@@ -380,6 +380,16 @@ def check_scheduler(address: str, timeout: float = 5.0) -> None:
     def refuse(why: str) -> ParameterError:
         return ParameterError(f"scheduler: cannot reach a Dask scheduler at {address} ({why})")
 
+    if not isinstance(address, str) or not address.strip():
+        raise ParameterError(f"scheduler: an address such as tcp://host:8786, got {address!r}")
+    if url.scheme != "tcp":
+        raise ParameterError(f"scheduler: {address}: h4pin reaches a Dask scheduler over tcp:// only "
+                             f"(not {url.scheme}://); give tcp://host:port")
+    try:
+        _ = url.port  # a port that is not a number raises here
+    except ValueError:
+        raise ParameterError(f"scheduler: {address}: the port must be a number (tcp://host:8786)") from None
+
     def recv(sock: socket.socket, n: int) -> bytes:
         data = b""
         while len(data) < n:
