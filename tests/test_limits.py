@@ -397,3 +397,14 @@ def test_memory_limit_zero_in_any_spelling_and_scheduler_schemes(monkeypatch):
                            ("tcp://127.0.0.1:port", "port must be a number"), ("", "an address such as")):
         with pytest.raises(h4pin_errors().ParameterError, match=match):
             sweep.check_scheduler(address)
+
+
+def test_a_sweep_chunk_larger_than_memory_is_refused():
+    """--chunk sets the zarr chunk, held whole while it is written: 1e12 designs a chunk is
+    refused in a line (before: a MemoryError asking for 44 TiB)."""
+    from h4pin.limits import TooLargeError
+    from h4pin.studies import sweep
+
+    with pytest.raises(TooLargeError, match="in chunks of 1,000,000,000,000"):
+        sweep.check_size(sweep.Spec(n_designs=1000, chunk=10**12))
+    sweep.check_size(sweep.Spec(n_designs=1000, chunk=64))

@@ -169,9 +169,13 @@ def check_size(spec: Spec) -> None:
         h4pin.limits.TooLargeError: over the limit (a :class:`h4pin.ParameterError`).
     """
     n = limits.count(spec.n_designs)
-    need = n * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) * limits.COMPLIANCE_BYTES_PER_POSE
+    # a zarr chunk is held whole in memory while it is written: --chunk larger than the sweep costs its size
+    chunk = limits.count(spec.chunk)
+    need = (n + 2 * chunk) * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) \
+        * limits.COMPLIANCE_BYTES_PER_POSE
     rate = FREQUENCY_DESIGNS_PER_S if spec.frequency else DESIGNS_PER_S
-    limits.check_size(f"sweep: {n:,} designs", need, n / rate, "use fewer designs (--designs)")
+    limits.check_size(f"sweep: {n:,} designs in chunks of {chunk:,}", need, n / rate,
+                      "use fewer designs (--designs) or smaller chunks (--chunk)")
 
 
 def designs(spec: Spec) -> np.ndarray:
