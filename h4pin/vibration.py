@@ -100,11 +100,11 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
         raise ParameterError(f"payload must be an h4pin.Payload or None, got {describe(payload)}")
     if payload is not None:  # an H4's plate weighs about 1 kg: a 1e12 kg payload is a typo
         limits.check_range("payload mass", payload.mass, "payload")
-    x = as_poses(real_array(pose, "pose"))
-    n = int(np.prod(x.shape[:-1])) if x.ndim > 1 else 1
-    limits.check_size(f"modes: {n:,} poses", n * (limits.MODES_BYTES_PER_POSE + x.itemsize * 4),
-                      n / limits.MODES_POSES_PER_S, "split the poses into chunks")
-    x = x.copy()
+    shape = np.shape(pose) if isinstance(pose, np.ndarray) else ()
+    n = int(np.prod(shape[:-1])) if len(shape) > 1 else 1  # before any pass over the values (a broadcast view)
+    limits.check_size(f"modes: {n:,} poses", n * (limits.MODES_BYTES_PER_POSE + 32), n / limits.MODES_POSES_PER_S,
+                      "split the poses into chunks")
+    x = as_poses(real_array(pose, "pose")).copy()
     x.setflags(write=False)
     if data is not None:
         if not isinstance(data, pin.Data):

@@ -135,6 +135,7 @@ def test_corpus_robot(entry):
     np.testing.assert_allclose(got[:m], np.sqrt(lam[:m]) / (2 * np.pi), rtol=1e-7)
 
 
+@pytest.mark.slow
 def test_corpus_timings_table():
     """The corpus as docs/mechanisms.md's table gives it: each robot loads, and a compliance call
     costs milliseconds (printed with -s; no time is asserted)."""

@@ -189,6 +189,7 @@ def _compare(h4, period, payload, samples=400, motion=True, mj=None):
             "sag": (ours[0], mj.displacement[0]), "mujoco": mj}
 
 
+@pytest.mark.slow
 def test_the_elastic_mujoco_model_driven_by_servos_agrees(h4):
     """The elastic MJCF with its actuators as position servos (gain the actuator_i_elastic
     spring, damper on the rate error) following the 0.5 s cycle's actuator angles, gravity on,

@@ -258,6 +258,7 @@ def test_text_round_trip_and_cli(h4, tmp_path):
     assert unmarked(target.read_text()) == text  # less the digest comment h4pin adds
 
 
+@pytest.mark.slow
 def test_servo_file_follows_its_controls(h4, tmp_path):
     """``h4pin export --elastic --servo`` writes the driveable model: 8 actuators (4 position
     servos of gain the actuator_i_elastic spring, 4 rate dampers), the keyframe's controls hold
