@@ -54,6 +54,18 @@ def _springs(mech: Mechanism) -> dict[str, float]:
     return out
 
 
+def _assembled_in_range(mech: Mechanism) -> np.ndarray:
+    """The default assembly, checked closed (1e-9) and inside the file's ranges."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        q = mech.assemble()
+    assert max(max(e) for e in mech.closure_errors(q).values()) <= 1e-9
+    lo, hi = mech.ranges
+    ranged = np.isfinite(lo)
+    assert np.all((q[ranged] >= lo[ranged] - 1e-12) & (q[ranged] <= hi[ranged] + 1e-12))
+    return q
+
+
 def _closure_rows(model: pin.Model, d: pin.Data, cm) -> np.ndarray:
     """The closure's Jacobian from its two frames (placements on their parent joints)."""
     if cm.type == pin.ContactType.CONTACT_3D:
@@ -94,13 +106,7 @@ def test_corpus_robot(entry):
         off = float(str(err.value).split("off by ")[1].split()[0])
         assert off == pytest.approx(OPEN[entry["name"]], rel=0.05)
         return
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MechanismWarning)
-        q = mech.assemble()
-    assert max(max(e) for e in mech.closure_errors(q).values()) <= 1e-9
-    lo, hi = mech.ranges
-    ranged = np.isfinite(lo)
-    assert np.all((q[ranged] >= lo[ranged] - 1e-12) & (q[ranged] <= hi[ranged] + 1e-12))
+    q = _assembled_in_range(mech)
 
     springs = _springs(mech)
     model = mech.model

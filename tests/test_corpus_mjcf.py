@@ -9,7 +9,6 @@ anchors, the joint couplings' rows from MuJoCo's own constraint Jacobian (``efc_
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,12 +16,12 @@ import pinocchio as pin
 import pytest
 
 from h4pin.elastic import Mechanism
-from h4pin.errors import H4Error, MechanismWarning, UnsupportedFeatureError
+from h4pin.errors import H4Error, UnsupportedFeatureError
 
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
     pytest.skip("Pinocchio < 4 reads no closures from MJCF", allow_module_level=True)
-from test_corpus import _closure_rows  # noqa: E402
+from test_corpus import _assembled_in_range, _closure_rows  # noqa: E402
 
 HERE = Path(__file__).parent / "robots" / "mjcf"
 #: robot file -> (motors to give, or None for the file's actuators; output site or body frame)
@@ -71,13 +70,7 @@ def test_loads_assembles_and_agrees_with_kkt(path):
     motors, out = LOADED[path]
     mech = Mechanism.from_mjcf(HERE / path, actuated=motors)
     mj = mujoco.MjModel.from_xml_path(str(HERE / path))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", MechanismWarning)
-        q = mech.assemble()
-    assert max(max(e) for e in mech.closure_errors(q).values()) <= 1e-9
-    lo, hi = mech.ranges
-    ok = np.isfinite(lo)
-    assert np.all((q[ok] >= lo[ok] - 1e-12) & (q[ok] <= hi[ok] + 1e-12))
+    q = _assembled_in_range(mech)
     model = mech.model
     springs = {model.names[j]: 20.0 * (1 + 0.1 * (j % 5)) for j in range(1, model.njoints)
                if model.names[j] not in mech.free_flyers}
