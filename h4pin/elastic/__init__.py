@@ -22,6 +22,7 @@ import warnings as _warnings
 
 from h4pin.elastic import modal as _modal
 from h4pin.elastic.beams import Beam
+from h4pin.elastic.couplings import JointCoupling
 from h4pin.elastic.engine import (
     FrameOutput,
     Insertion,
@@ -33,7 +34,7 @@ from h4pin.elastic.engine import (
     insert_joints,
 )
 from h4pin.elastic.h4 import ElasticH4, elastic_model
-from h4pin.elastic.mechanism import JointCoupling, Mechanism, MechanismModes
+from h4pin.elastic.mechanism import Mechanism, MechanismModes
 from h4pin.elastic.modal import Modes, Payload, modes
 
 

@@ -35,6 +35,7 @@ import pinocchio as pin
 
 from h4pin._compat import constraint_calc
 from h4pin.elastic import engine
+from h4pin.elastic.couplings import JointCoupling
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
 from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
@@ -56,38 +57,6 @@ class MechanismModes:
     frequencies: np.ndarray
     shapes_q: np.ndarray
     massless: int
-
-
-@dataclasses.dataclass(frozen=True)
-class JointCoupling:
-    """A joint coupling (MJCF ``<equality><joint polycoef>``): ``u1 = sum_k poly[k] u2**k`` with
-    ``u = q - origin`` each (Pinocchio's coordinates); no ``joint2``: ``u1 = poly[0]``."""
-
-    joint1: str
-    joint2: str | None
-    poly: tuple[float, ...]
-    origin1: float = 0.0
-    origin2: float = 0.0
-
-    def _index(self, model: pin.Model, name: str) -> int:
-        jm = model.joints[model.getJointId(name)]
-        if jm.nq != 1 or jm.nv != 1:
-            raise ParameterError(f"coupling: joint {name!r} has {jm.nv} coordinates (one only)")
-        return jm.idx_q
-
-    def residual_row(self, model: pin.Model, q: np.ndarray) -> tuple[float, np.ndarray]:
-        """The coupling's residual at q and its row (nv,) of d(residual)/dq."""
-        i1 = self._index(model, self.joint1)
-        row = np.zeros(model.nv)
-        row[model.joints[model.getJointId(self.joint1)].idx_v] = 1.0
-        if self.joint2 is None:
-            return float(q[i1] - self.origin1 - self.poly[0]), row
-        i2 = self._index(model, self.joint2)
-        u2 = q[i2] - self.origin2
-        value = sum(c * u2**k for k, c in enumerate(self.poly))
-        slope = sum(k * c * u2 ** (k - 1) for k, c in enumerate(self.poly) if k)
-        row[model.joints[model.getJointId(self.joint2)].idx_v] = -slope
-        return float(q[i1] - self.origin1 - value), row
 
 
 def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
@@ -208,34 +177,9 @@ class Mechanism:
         object.__setattr__(self, "actuated", _names(model, actuated, "actuated"))
         object.__setattr__(self, "name", name or model.name or "mechanism")
         object.__setattr__(self, "_local", threading.local())
-        ref = pin.neutral(model) if reference is None else model_configuration(model, reference, "reference")
-        ref.setflags(write=False)
-        object.__setattr__(self, "reference", ref)
-        lo, hi = _urdf_ranges(model) if ranges is None else (np.array(r, dtype=float) for r in ranges)
-        if lo.shape != (model.nq,) or hi.shape != (model.nq,) or np.any(lo > hi):
-            raise ParameterError(f"ranges: (lower, upper), each ({model.nq},) with lower <= upper (nan: none)")
-        for r in (lo, hi):
-            r.setflags(write=False)
-        object.__setattr__(self, "ranges", (lo, hi))
-        stiff = {} if springs is None else dict(springs)
-        if stiff:
-            stiff = dict(zip(_names(model, list(stiff), "springs"), stiff.values(), strict=True))
-            engine.stiffness_vector(model, stiff)  # checked now
-        object.__setattr__(self, "springs", stiff)
-        object.__setattr__(self, "spring_rest", {})
-        cps = tuple(couplings)
-        for c in cps:
-            if not isinstance(c, JointCoupling):
-                raise ParameterError(f"couplings: JointCoupling values, got {c!r}")
-            _names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
-            c.residual_row(model, pin.neutral(model))
-        object.__setattr__(self, "couplings", cps)
-        object.__setattr__(self, "beam_springs", {})
-        object.__setattr__(self, "_lift", None)
-        roots = tuple(model.names[j] for j in range(1, model.njoints)
-                      if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
-                      and not _tied(model, self.constraint_models, j))
-        object.__setattr__(self, "free_flyers", roots)
+        values = _file_data(model, self.constraint_models, reference, ranges, springs, couplings)
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"a Mechanism is immutable (cannot set {name!r})")
@@ -349,29 +293,7 @@ class Mechanism:
             ParameterError: not a mapping of link names to beams, an unknown link, a link with no
                 far end or several without ``to``.
         """
-        from h4pin.elastic import beams as bm
-
-        if not isinstance(beams, Mapping) or not beams:
-            raise ParameterError(f"beams: a mapping {{link name: h4pin.elastic.Beam}}, got {beams!r}")
-        model = self.model
-        d = model.createData()
-        pin.framesForwardKinematics(model, d, self.reference)
-        ins = [bm.insertion(model, d, self.constraint_models, link, beam) for link, beam in beams.items()]
-        parents = [i.parent for i in ins]
-        if len(set(parents)) != len(parents):
-            raise ParameterError("beams: two links on one joint; one beam per joint")
-        new_model, new_cms, q_index = engine.insert_joints(model, ins, self.constraint_models, self.reference)
-        lift = np.zeros(new_model.nq)
-        lift[q_index] = self.reference
-        lo, hi = (np.full(new_model.nq, np.nan) for _ in range(2))
-        lo[q_index], hi[q_index] = self.ranges
-        out = Mechanism(new_model, new_cms, self.actuated, name=f"{self.name} with beams", reference=lift,
-                        ranges=(lo, hi), springs=self.springs, couplings=self.couplings)
-        object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints
-                                                 if math.isfinite(j.stiffness)})
-        object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
-        object.__setattr__(out, "spring_rest", dict(self.spring_rest))
-        return out
+        return _with_beams(self, beams)
 
     # ------------------------------------------------------------------ geometry
     def _q(self, q: Any, what: str = "q") -> np.ndarray:
@@ -421,13 +343,13 @@ class Mechanism:
         start = np.array(self.reference) if q is None else self._q(q)
         held = _names(model, self.actuated if fixed is None else fixed, "fixed")
         held = held + tuple(n for n in self.beam_springs if n not in held)  # a beam's joints: rigid assembly
-        self._check_ranges(start, held, "held")
+        _check_ranges(self, start, held, "held")
         try:
-            return self._close(start, held, float(tol), int(iterations))
+            return _close(self, start, held, float(tol), int(iterations))
         except UnassembledError:
             if fixed is not None or not held:
                 raise
-        out = self._close(start, (), float(tol), int(iterations))
+        out = _close(self, start, (), float(tol), int(iterations))
         moved = []
         for n in held:
             j = model.joints[model.getJointId(n)]
@@ -436,131 +358,7 @@ class Mechanism:
                       f"with the motors free (moved by, rad or m: {', '.join(moved)})", MechanismWarning, stacklevel=2)
         return out
 
-    def _check_couplings(self, q: np.ndarray) -> None:
-        for c in self.couplings:
-            r = c.residual_row(self.model, q)[0]
-            if abs(r) > engine.CLOSURE_TOL:
-                raise UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
-
-    def _coupling_rows(self, q: np.ndarray) -> np.ndarray | None:
-        if not self.couplings:
-            return None
-        return np.array([c.residual_row(self.model, q)[1] for c in self.couplings])
-
-    def _check_ranges(self, q: np.ndarray, joints: Iterable[str], what: str) -> None:
-        lo, hi = self.ranges
-        for n in joints:
-            j = self.model.joints[self.model.getJointId(n)]
-            sl = slice(j.idx_q, j.idx_q + j.nq)
-            bad = (q[sl] < lo[sl] - 1e-12) | (q[sl] > hi[sl] + 1e-12)
-            if np.any(bad):
-                raise UnassembledError(f"{self.name}: {what} joint {n!r} is at {q[sl][bad][0]:.6g}, outside its range "
-                                       f"[{lo[sl][bad][0]:.6g}, {hi[sl][bad][0]:.6g}]")
-
-    def _close(self, start: np.ndarray, held: Sequence[str], tol: float, iterations: int) -> np.ndarray:
-        """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`)."""
-        from scipy.optimize import least_squares
-
-        model, d = self.model, self.data
-        free = np.ones(model.nv, dtype=bool)
-        for n in held:
-            j = model.joints[model.getJointId(n)]
-            free[j.idx_v:j.idx_v + j.nv] = False
-        lo, hi = self.ranges
-        q0 = np.array(start)
-        lower, upper = np.full(model.nv, -np.inf), np.full(model.nv, np.inf)
-        for j in range(1, model.njoints):
-            jm = model.joints[j]
-            if jm.nq == 1 and jm.nv == 1 and free[jm.idx_v] and np.isfinite(lo[jm.idx_q]):
-                q0[jm.idx_q] = min(max(q0[jm.idx_q], lo[jm.idx_q]), hi[jm.idx_q])
-                lower[jm.idx_v], upper[jm.idx_v] = lo[jm.idx_q] - q0[jm.idx_q], hi[jm.idx_q] - q0[jm.idx_q]
-        pin.forwardKinematics(model, d, q0)
-        scale = engine.length_scale(model, d)
-        embed = np.eye(model.nv)[:, free]
-
-        def at(x: np.ndarray) -> np.ndarray:
-            return pin.integrate(model, q0, embed @ x)
-
-        def residual(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, str]]:
-            pin.computeJointJacobians(model, d, q)
-            rows, res, worst = [], [], (0.0, "")
-            for cm in self.constraint_models:
-                r, jac, err = _closure_step(model, d, cm)
-                w = np.ones(len(r))
-                w[:3] = 1.0 / scale
-                rows.append(jac * w[:, None])
-                res.append(r * w)
-                worst = max(worst, (err, cm.name))
-            for c in self.couplings:
-                r, row = c.residual_row(model, q)
-                rows.append(row[None])
-                res.append(np.array([r]))
-                worst = max(worst, (abs(r), f"coupling {c.joint1}"))
-            return np.concatenate(res), np.vstack(rows), worst
-
-        if not self.constraint_models and not self.couplings:
-            return q0
-        if free.any():
-            def fun(x: np.ndarray) -> np.ndarray:
-                return residual(at(x))[0]
-
-            def jac(x: np.ndarray) -> np.ndarray:
-                return residual(at(x))[1] @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed
-
-            x0 = np.zeros(int(free.sum()))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                sol = least_squares(fun, x0, jac=jac, bounds=(lower[free], upper[free]), method="trf",
-                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max(iterations, 20) * 5)
-            q = at(sol.x)
-        else:
-            q = q0
-        worst = (math.inf, "")
-        for _ in range(iterations):
-            r, jc, worst = residual(q)
-            if worst[0] <= tol:
-                break
-            if not free.any():
-                break
-            step = np.zeros(model.nv)
-            step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
-            q = pin.integrate(model, q, step)
-        else:
-            worst = residual(q)[2]
-        if not worst[0] <= tol:
-            raise UnassembledError(f"{self.name}: the loops do not close from this start: closure {worst[1]!r} is off "
-                                   f"by {worst[0]:.3e} (tolerance {tol:g}); start nearer, or hold other joints "
-                                   "(fixed=...)")
-        self._check_ranges(q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
-        return q
-
     # ------------------------------------------------------------------ stiffness
-    def _outputs(self, outputs: Sequence[Any]) -> list[Any]:
-        if isinstance(outputs, (str, FrameOutput, JointOutput)):
-            outputs = [outputs]
-        try:
-            outputs = list(outputs)
-        except TypeError:
-            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {outputs!r}") from None
-        out = []
-        for o in outputs:
-            if isinstance(o, str):
-                if not self.model.existFrame(o):
-                    raise ParameterError(f"outputs: no frame {o!r} in {self.name}")
-                out.append(FrameOutput(o))
-            elif isinstance(o, FrameOutput):
-                if not self.model.existFrame(o.frame):
-                    raise ParameterError(f"outputs: no frame {o.frame!r} in {self.name}")
-                out.append(o)
-            elif isinstance(o, JointOutput):
-                _names(self.model, [o.joint], "outputs")
-                out.append(o)
-            else:
-                raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
-        if not out:
-            raise ParameterError("outputs: give at least one frame")
-        return out
-
     def _springs(self, springs: Mapping[Any, Any]) -> dict[str, Any]:
         if not isinstance(springs, Mapping) or not (springs or self.beam_springs):
             raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
@@ -599,11 +397,11 @@ class Mechanism:
         """
         stiff = self._springs(springs)
         q = self._q(q)
-        self._check_couplings(q)
+        _check_couplings(self, q)
         return engine.compliance_matrix(self.model, self.constraint_models, q,
                                         locked=self._locked(locked, stiff, free_root), stiffness=stiff,
-                                        outputs=self._outputs(outputs), data=self.data,
-                                        extra_rows=self._coupling_rows(q))
+                                        outputs=_outputs(self, outputs), data=self.data,
+                                        extra_rows=_coupling_rows(self, q))
 
     def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
               payload: tuple[str, Any] | None = None, free_root: bool = False) -> MechanismModes:
@@ -624,8 +422,8 @@ class Mechanism:
         model, d = self.model, self.data
         k = engine.stiffness_vector(model, stiff)
         pin.computeJointJacobians(model, d, q)
-        self._check_couplings(q)
-        n = _admissible(model, self.constraint_models, q, lock, k, d, self._coupling_rows(q))
+        _check_couplings(self, q)
+        n = _admissible(model, self.constraint_models, q, lock, k, d, _coupling_rows(self, q))
         extra = None
         if payload is not None:
             frame, body = payload
@@ -639,6 +437,191 @@ class Mechanism:
             mass = mass + extra
         freq, shapes, massless = undamped_modes(n, k, mass)
         return MechanismModes(freq, shapes, massless)
+
+
+def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, springs: Any,
+               couplings: Iterable[Any]) -> dict[str, Any]:
+    """The checked file data of a :class:`Mechanism` (its constructor's keywords), and its
+    free-flyer roots."""
+    ref = pin.neutral(model) if reference is None else model_configuration(model, reference, "reference")
+    ref.setflags(write=False)
+    lo, hi = _urdf_ranges(model) if ranges is None else (np.array(r, dtype=float) for r in ranges)
+    if lo.shape != (model.nq,) or hi.shape != (model.nq,) or np.any(lo > hi):
+        raise ParameterError(f"ranges: (lower, upper), each ({model.nq},) with lower <= upper (nan: none)")
+    for r in (lo, hi):
+        r.setflags(write=False)
+    stiff = {} if springs is None else dict(springs)
+    if stiff:
+        stiff = dict(zip(_names(model, list(stiff), "springs"), stiff.values(), strict=True))
+        engine.stiffness_vector(model, stiff)  # checked now
+    cps = tuple(couplings)
+    for c in cps:
+        if not isinstance(c, JointCoupling):
+            raise ParameterError(f"couplings: JointCoupling values, got {c!r}")
+        _names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
+        c.residual_row(model, pin.neutral(model))
+    roots = tuple(model.names[j] for j in range(1, model.njoints)
+                  if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
+                  and not _tied(model, closures, j))
+    return {"reference": ref, "ranges": (lo, hi), "springs": stiff, "spring_rest": {}, "couplings": cps,
+            "beam_springs": {}, "_lift": None, "free_flyers": roots}
+
+
+def _check_couplings(mech: Mechanism, q: np.ndarray) -> None:
+    for c in mech.couplings:
+        r = c.residual_row(mech.model, q)[0]
+        if abs(r) > engine.CLOSURE_TOL:
+            raise UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
+
+
+def _coupling_rows(mech: Mechanism, q: np.ndarray) -> np.ndarray | None:
+    if not mech.couplings:
+        return None
+    return np.array([c.residual_row(mech.model, q)[1] for c in mech.couplings])
+
+
+def _check_ranges(mech: Mechanism, q: np.ndarray, joints: Iterable[str], what: str) -> None:
+    lo, hi = mech.ranges
+    for n in joints:
+        j = mech.model.joints[mech.model.getJointId(n)]
+        sl = slice(j.idx_q, j.idx_q + j.nq)
+        bad = (q[sl] < lo[sl] - 1e-12) | (q[sl] > hi[sl] + 1e-12)
+        if np.any(bad):
+            raise UnassembledError(f"{mech.name}: {what} joint {n!r} is at {q[sl][bad][0]:.6g}, outside its range "
+                                   f"[{lo[sl][bad][0]:.6g}, {hi[sl][bad][0]:.6g}]")
+
+
+def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
+    if isinstance(outputs, (str, FrameOutput, JointOutput)):
+        outputs = [outputs]
+    try:
+        outputs = list(outputs)
+    except TypeError:
+        raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {outputs!r}") from None
+    out = []
+    for o in outputs:
+        if isinstance(o, str):
+            if not mech.model.existFrame(o):
+                raise ParameterError(f"outputs: no frame {o!r} in {mech.name}")
+            out.append(FrameOutput(o))
+        elif isinstance(o, FrameOutput):
+            if not mech.model.existFrame(o.frame):
+                raise ParameterError(f"outputs: no frame {o.frame!r} in {mech.name}")
+            out.append(o)
+        elif isinstance(o, JointOutput):
+            _names(mech.model, [o.joint], "outputs")
+            out.append(o)
+        else:
+            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
+    if not out:
+        raise ParameterError("outputs: give at least one frame")
+    return out
+
+
+def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, iterations: int) -> np.ndarray:
+    """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`)."""
+    from scipy.optimize import least_squares
+
+    model, d = mech.model, mech.data
+    free = np.ones(model.nv, dtype=bool)
+    for n in held:
+        j = model.joints[model.getJointId(n)]
+        free[j.idx_v:j.idx_v + j.nv] = False
+    lo, hi = mech.ranges
+    q0 = np.array(start)
+    lower, upper = np.full(model.nv, -np.inf), np.full(model.nv, np.inf)
+    for j in range(1, model.njoints):
+        jm = model.joints[j]
+        if jm.nq == 1 and jm.nv == 1 and free[jm.idx_v] and np.isfinite(lo[jm.idx_q]):
+            q0[jm.idx_q] = min(max(q0[jm.idx_q], lo[jm.idx_q]), hi[jm.idx_q])
+            lower[jm.idx_v], upper[jm.idx_v] = lo[jm.idx_q] - q0[jm.idx_q], hi[jm.idx_q] - q0[jm.idx_q]
+    pin.forwardKinematics(model, d, q0)
+    scale = engine.length_scale(model, d)
+    embed = np.eye(model.nv)[:, free]
+
+    def at(x: np.ndarray) -> np.ndarray:
+        return pin.integrate(model, q0, embed @ x)
+
+    def residual(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, str]]:
+        pin.computeJointJacobians(model, d, q)
+        rows, res, worst = [], [], (0.0, "")
+        for cm in mech.constraint_models:
+            r, jac, err = _closure_step(model, d, cm)
+            w = np.ones(len(r))
+            w[:3] = 1.0 / scale
+            rows.append(jac * w[:, None])
+            res.append(r * w)
+            worst = max(worst, (err, cm.name))
+        for c in mech.couplings:
+            r, row = c.residual_row(model, q)
+            rows.append(row[None])
+            res.append(np.array([r]))
+            worst = max(worst, (abs(r), f"coupling {c.joint1}"))
+        return np.concatenate(res), np.vstack(rows), worst
+
+    if not mech.constraint_models and not mech.couplings:
+        return q0
+    if free.any():
+        def fun(x: np.ndarray) -> np.ndarray:
+            return residual(at(x))[0]
+
+        def jac(x: np.ndarray) -> np.ndarray:
+            return residual(at(x))[1] @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed
+
+        x0 = np.zeros(int(free.sum()))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sol = least_squares(fun, x0, jac=jac, bounds=(lower[free], upper[free]), method="trf",
+                                xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max(iterations, 20) * 5)
+        q = at(sol.x)
+    else:
+        q = q0
+    worst = (math.inf, "")
+    for _ in range(iterations):
+        r, jc, worst = residual(q)
+        if worst[0] <= tol:
+            break
+        if not free.any():
+            break
+        step = np.zeros(model.nv)
+        step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
+        q = pin.integrate(model, q, step)
+    else:
+        worst = residual(q)[2]
+    if not worst[0] <= tol:
+        raise UnassembledError(f"{mech.name}: the loops do not close from this start: closure {worst[1]!r} is off "
+                               f"by {worst[0]:.3e} (tolerance {tol:g}); start nearer, or hold other joints "
+                               "(fixed=...)")
+    _check_ranges(mech, q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
+    return q
+
+
+def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
+    """:meth:`Mechanism.with_beams`."""
+    from h4pin.elastic import beams as bm
+
+    if not isinstance(beams, Mapping) or not beams:
+        raise ParameterError(f"beams: a mapping {{link name: h4pin.elastic.Beam}}, got {beams!r}")
+    model = mech.model
+    d = model.createData()
+    pin.framesForwardKinematics(model, d, mech.reference)
+    ins = [bm.insertion(model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
+    parents = [i.parent for i in ins]
+    if len(set(parents)) != len(parents):
+        raise ParameterError("beams: two links on one joint; one beam per joint")
+    new_model, new_cms, q_index = engine.insert_joints(model, ins, mech.constraint_models, mech.reference)
+    lift = np.zeros(new_model.nq)
+    lift[q_index] = mech.reference
+    lo, hi = (np.full(new_model.nq, np.nan) for _ in range(2))
+    lo[q_index], hi[q_index] = mech.ranges
+    out = Mechanism(new_model, new_cms, mech.actuated, name=f"{mech.name} with beams", reference=lift,
+                    ranges=(lo, hi), springs=mech.springs, couplings=mech.couplings)
+    object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints
+                                             if math.isfinite(j.stiffness)})
+    object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
+    object.__setattr__(out, "spring_rest", dict(mech.spring_rest))
+    return out
+
 
 
 def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np.ndarray, float]:

@@ -21,7 +21,7 @@ Two readers, each for what it does right:
   ``stiffness`` and ``springref`` (all in Pinocchio's coordinates), the equalities
   and the actuators' transmissions.
 
-Joint couplings (``<equality><joint polycoef>``) become :class:`~h4pin.elastic.mechanism.JointCoupling`
+Joint couplings (``<equality><joint polycoef>``) become :class:`~h4pin.elastic.couplings.JointCoupling`
 constraints. What neither reader can represent is refused by name
 (:class:`~h4pin.errors.UnsupportedFeatureError`): tendon equalities, actuators that do not drive a
 joint (unless the motors are given).
@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from h4pin.elastic.couplings import JointCoupling
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
 
 
@@ -50,7 +51,7 @@ class MjcfInfo:
     spring_rest: dict[str, float]
     motors: tuple[str, ...]
     refused: tuple[str, ...]  # actuators that drive no joint (tendon, site, body)
-    couplings: tuple[Any, ...]  # h4pin.elastic.mechanism.JointCoupling
+    couplings: tuple[JointCoupling, ...]
 
 
 def _split(model: pin.Model, names_of: dict[str, list[str]]) -> tuple[pin.Model, dict[int, int]]:
@@ -249,8 +250,6 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
             springs[name] = float(mj.jnt_stiffness[i])
             rest[name] = float(mj.qpos_spring[mj.jnt_qposadr[i]] - ref)
     _check_kinematics(path, mj, model, q)
-    from h4pin.elastic.mechanism import JointCoupling
-
     couplings = []
     for i, k in enumerate(kinds):
         if k != "joint" or not mj.eq_active0[i]:

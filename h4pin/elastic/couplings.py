@@ -1,0 +1,47 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Joint couplings of a closed-loop robot (MJCF ``<equality><joint polycoef>``): constraints
+like its closures, for :class:`h4pin.elastic.Mechanism`."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin.errors import ParameterError
+
+
+@dataclasses.dataclass(frozen=True)
+class JointCoupling:
+    """A joint coupling (MJCF ``<equality><joint polycoef>``): ``u1 = sum_k poly[k] u2**k`` with
+    ``u = q - origin`` each (Pinocchio's coordinates); no ``joint2``: ``u1 = poly[0]``."""
+
+    joint1: str
+    joint2: str | None
+    poly: tuple[float, ...]
+    origin1: float = 0.0
+    origin2: float = 0.0
+
+    def _index(self, model: pin.Model, name: str) -> int:
+        jm = model.joints[model.getJointId(name)]
+        if jm.nq != 1 or jm.nv != 1:
+            raise ParameterError(f"coupling: joint {name!r} has {jm.nv} coordinates (one only)")
+        return jm.idx_q
+
+    def residual_row(self, model: pin.Model, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """The coupling's residual at q and its row (nv,) of d(residual)/dq."""
+        i1 = self._index(model, self.joint1)
+        row = np.zeros(model.nv)
+        row[model.joints[model.getJointId(self.joint1)].idx_v] = 1.0
+        if self.joint2 is None:
+            return float(q[i1] - self.origin1 - self.poly[0]), row
+        i2 = self._index(model, self.joint2)
+        u2 = q[i2] - self.origin2
+        value = sum(c * u2**k for k, c in enumerate(self.poly))
+        slope = sum(k * c * u2 ** (k - 1) for k, c in enumerate(self.poly) if k)
+        row[model.joints[model.getJointId(self.joint2)].idx_v] = -slope
+        return float(q[i1] - self.origin1 - value), row
+
+
+__all__ = ["JointCoupling"]
