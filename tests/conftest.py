@@ -122,3 +122,58 @@ def run_cli_in_process(argv: list[str], monkeypatch, capsys) -> tuple[int, str, 
         cli.main()
     out = capsys.readouterr()
     return info.value.code, out.out, out.err
+
+#: Cases of 4 s or more each on the project's 2-core VM (pytest --durations, this release): they
+#: run with the slow cases (``pytest -m slow``, once in CI) so that the README's test command stays
+#: within a few minutes there, compile included. Each is a whole command, a browser page, a server
+#: or a sweep over every variant; a cheaper case of the same code stays in the default run.
+SLOW_IDS = frozenset({
+    'tests/test_cycle.py::test_dynamic_deflection_of_a_harmonic_load_is_the_textbook_response',
+    ('tests/test_readme.py::test_shell_lines_run[README.md:274 .venv/bin/h4pin view --load 0 0 -'
+     '10 --field --out h4.html]'),
+    'tests/test_atlas.py::test_maps_have_one_figure_per_quantity',
+    'tests/test_sweep.py::test_cli_sweep',
+    'tests/test_cli.py::test_a_user_file_is_kept_unless_overwrite[export]',
+    'tests/test_atlas.py::test_streamed_atlas_equals_the_one_in_memory',
+    'tests/test_viewer.py::test_cli_server_stops_on_signals[2-130-None]',
+    ('tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args13-mode index '
+     'must be an integer in 0..15]'),
+    'tests/test_readme.py::test_shell_lines_run[README.md:352 .venv/bin/h4pin view --mode 1 --out mode1.html]',
+    'tests/test_viewer.py::test_cli_writes_a_self_contained_page',
+    'tests/test_identify.py::test_computed_table_is_met_within_rounding_by_the_robot_quantities',
+    ('tests/test_readme.py::test_shell_lines_run[README.md:351 .venv/bin/h4pin cycle --time 0.5 '
+     '--payload 0 --payload 0.5]'),
+    'tests/test_viewer.py::test_server_stops_when_the_viewer_is_killed',
+    'tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args1-singular]',
+    'tests/test_mjcf_elastic.py::test_static_deflection_with_every_element_equals_the_compliance[off-centre]',
+    'tests/test_mjcf_elastic.py::test_static_deflection_with_every_element_equals_the_compliance[centre]',
+    'tests/test_frequencies.py::test_every_frequency_equals_the_pinocchio_route[measured_match-bare-elements]',
+    'tests/test_limits.py::test_a_scheduler_that_is_not_dask_is_refused_in_seconds[http_server]',
+    'tests/test_frequencies.py::test_every_frequency_equals_the_pinocchio_route[prototype-bare-elements]',
+    'tests/test_elastic_cycle.py::test_a_slow_cycle_is_quasi_static_and_a_fast_one_is_not',
+    'tests/test_frequencies.py::test_every_frequency_equals_the_pinocchio_route[symmetric-bare-elements]',
+    'tests/test_sweep.py::test_packed_kernels_equal_the_canonical_route',
+    'tests/test_sweep.py::test_two_dask_workers_give_the_same_numbers',
+    'tests/test_frequencies.py::test_every_frequency_equals_the_pinocchio_route[symmetric-payload-elements]',
+    ('tests/test_readme.py::test_shell_lines_run[README.md:310 .venv/bin/h4pin atlas --x -0.2 0.'
+     '2 21 --y -0.2 0.2 21 --out atlas.nc --quiet]'),
+    'tests/test_atlas.py::test_cli_writes_the_atlas',
+    'tests/test_elements.py::test_per_element_values_on_a_toleranced_robot_with_tilted_joint_axes',
+    'tests/test_urdf.py::test_every_variant_is_shipped_and_current',
+    'tests/test_core.py::test_elements_against_the_independent_routes[measured_match]',
+    'tests/test_verdicts.py::test_sweep_of_random_poses[toleranced]',
+    ('tests/test_readme.py::test_shell_lines_run[README.md:311 .venv/bin/h4pin sweep --designs 1'
+     '6 --chunk 8 --out sweep.zarr --quiet]'),
+    'tests/test_readme.py::test_python_blocks_run_as_written',
+    'tests/test_core.py::test_one_robot_shared_by_eight_threads',
+    'tests/test_core.py::test_elements_against_the_independent_routes[symmetric]',
+    'tests/test_core.py::test_elements_against_the_independent_routes[toleranced]',
+    'tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args0-cannot reach]',
+    'tests/test_readme.py::test_shell_lines_run[README.md:275 .venv/bin/h4pin view --variant symmetric]',})
+
+
+@pytest.hookimpl(tryfirst=True)  # before the mark plugin deselects by -m
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.nodeid in SLOW_IDS:
+            item.add_marker(pytest.mark.slow)
