@@ -283,12 +283,11 @@ def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float
         v, a = np.zeros(mm.nv), np.zeros(mm.nv)
         v[vmap], a[vmap] = row.v, row.a
         T = basis(q)
+        jo = engine.output_jacobian(mm, d, em.outputs)  # d at q (basis's kinematics), before the neighbours'
         if coordinates is not None:
             near = [pin.integrate(mm, q, sign * h * v + 0.5 * h * h * a) for sign in (-1.0, 1.0)]
             velocity[i], stiffness[i] = _motion_terms(coordinates, q, v, a, T, (near[0], basis(near[0]), near[1],
                                                       basis(near[1])), h, locked, dofs)
-        pin.computeJointJacobians(mm, d, q)
-        jo = engine.output_jacobian(mm, d, em.outputs)
         f = -pin.rnea(mm, d, q, v, a)
         M = pin.crba(mm, d, q)
         M = np.triu(M) + np.triu(M, 1).T
@@ -385,14 +384,13 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     damping = rigid._positive("damping", damping, zero=True, unit=" (s)")
     hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
     limits.check_range("period", period, "cycle_time")
-    n_stop = math.ceil(hold / (float(period) / samples)) if hold < math.inf else math.inf
-    limits.check_elastic_cycle(int(samples), n_stop if n_stop < 1e18 else 10**18)
+    dt = float(period) / samples
+    n_hold = int(math.ceil(hold / dt))
+    limits.check_elastic_cycle(int(samples), n_hold)
     o = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
         raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
     cycle = rigid.adept_cycle(h4, period, **cycle_options)
-    dt = cycle.period / samples
-    n_hold = int(math.ceil(hold / dt))
     t = np.arange(samples + 1 + n_hold) * dt
     sp = springs_along(h4, cycle, t[:samples + 1], payload, motion=motion)
     # the stop: at rest at the end pose (the start pose) for the hold, the last sample repeated
