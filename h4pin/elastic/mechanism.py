@@ -39,7 +39,7 @@ from h4pin.elastic.couplings import JointCoupling
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
 from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
-from h4pin.kinematics.pinocchio import model_configuration
+from h4pin.kinematics.pinocchio import finite_configuration, model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
 ASSEMBLY_TOL = 1e-10
@@ -59,15 +59,23 @@ class MechanismModes:
     massless: int
 
 
+def _items(value: Any, single: tuple[type, ...], what: str) -> list[Any]:
+    """``value`` as a list: one item of a ``single`` type, or the items of an iterable; else a
+    :class:`ParameterError` "``what``, got ..."."""
+    if isinstance(value, single):
+        return [value]
+    try:
+        return list(value)
+    except TypeError:
+        raise ParameterError(f"{what}, got {value!r}") from None
+
+
 def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
     """Joint names from names or Pinocchio ids (one, or several), each checked (a typed error
     naming it)."""
-    if isinstance(joints, (str, int, np.integer)):
-        joints = [joints]
-    try:
-        joints = list(joints)
-    except TypeError:
-        raise ParameterError(f"{what}: joint names or Pinocchio joint ids, got {joints!r}") from None
+    if isinstance(joints, bytes):  # list(b"ab") would read as joint ids 97, 98
+        raise ParameterError(f"{what}: joint names (text) or Pinocchio joint ids, got {joints!r}")
+    joints = _items(joints, (str, int, np.integer), f"{what}: joint names or Pinocchio joint ids")
     out = []
     for j in joints:
         if isinstance(j, (int, np.integer)) and not isinstance(j, bool):
@@ -95,17 +103,6 @@ def _urdf_ranges(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
             if np.isfinite(a) and np.isfinite(b) and a < b and max(abs(a), abs(b)) < 1e100:
                 lo[jm.idx_q], hi[jm.idx_q] = a, b
     return lo, hi
-
-
-def _finite(q: Any, n: int, what: str) -> np.ndarray:
-    try:
-        qv = np.array(q, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a configuration of {n} numbers, got {q!r}") from None
-    bad = np.flatnonzero(~np.isfinite(qv))
-    if bad.size:
-        raise ParameterError(f"{what}[{bad[0]}] is {qv[bad[0]]}: a configuration must be finite")
-    return qv
 
 
 def _tied(model: pin.Model, constraint_models: Iterable[Any], root: int) -> bool:
@@ -300,7 +297,7 @@ class Mechanism:
         lift = self._lift
         if lift is not None and np.shape(q) == (lift[1],):
             full = np.zeros(self.model.nq)
-            full[lift[0]] = _finite(q, lift[1], what)
+            full[lift[0]] = finite_configuration(q, lift[1], what)
             return full
         return model_configuration(self.model, q, what)
 
@@ -371,8 +368,6 @@ class Mechanism:
     def _locked(self, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
         if not isinstance(free_root, bool):
             raise ParameterError(f"free_root: True or False, got {free_root!r}")
-        if isinstance(locked, (str, bytes)):
-            locked = [locked]
         names = _names(self.model, locked, "locked")
         both = sorted(set(names) & set(springs))
         if both:
@@ -492,12 +487,7 @@ def _check_ranges(mech: Mechanism, q: np.ndarray, joints: Iterable[str], what: s
 
 
 def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
-    if isinstance(outputs, (str, FrameOutput, JointOutput)):
-        outputs = [outputs]
-    try:
-        outputs = list(outputs)
-    except TypeError:
-        raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {outputs!r}") from None
+    outputs = _items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
     out = []
     for o in outputs:
         if isinstance(o, str):
@@ -562,11 +552,21 @@ def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, 
     if not mech.constraint_models and not mech.couplings:
         return q0
     if free.any():
+        last: dict[bytes, Any] = {}
+
+        def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # least_squares asks fun, then jac, at one x
+            key = x.tobytes()
+            if key not in last:
+                last.clear()
+                r, jc, _ = residual(at(x))
+                last[key] = (r, jc @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed)
+            return last[key]
+
         def fun(x: np.ndarray) -> np.ndarray:
-            return residual(at(x))[0]
+            return both(x)[0]
 
         def jac(x: np.ndarray) -> np.ndarray:
-            return residual(at(x))[1] @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed
+            return both(x)[1]
 
         x0 = np.zeros(int(free.sum()))
         with warnings.catch_warnings():
@@ -621,7 +621,6 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
     object.__setattr__(out, "spring_rest", dict(mech.spring_rest))
     return out
-
 
 
 def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np.ndarray, float]:

@@ -165,12 +165,18 @@ def as_configuration(h4, q: Any) -> np.ndarray:
 def model_configuration(model: pin.Model, q: Any, what: str = "q") -> np.ndarray:
     """``q`` as a finite configuration (nq,) of ``model`` (a copy), or a :class:`ParameterError`
     naming ``what``."""
+    return finite_configuration(q, model.nq, what)
+
+
+def finite_configuration(q: Any, nq: int, what: str = "q") -> np.ndarray:
+    """``q`` as a finite float vector (nq,) (a copy), or a :class:`ParameterError` naming
+    ``what``: the shape it has, or the first coordinate that is not finite."""
     try:
         qv = np.array(q, dtype=float)
     except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a configuration of {model.nq} numbers, got {q!r}") from None
-    if qv.shape != (model.nq,):
-        raise ParameterError(f"{what} must be a configuration of shape ({model.nq},), got shape {qv.shape}")
+        raise ParameterError(f"{what} must be a configuration of {nq} numbers, got {q!r}") from None
+    if qv.shape != (nq,):
+        raise ParameterError(f"{what} must be a configuration of shape ({nq},), got shape {qv.shape}")
     bad = np.flatnonzero(~np.isfinite(qv))
     if bad.size:
         raise ParameterError(f"{what}[{bad[0]}] is {qv[bad[0]]}: a configuration must be finite")
