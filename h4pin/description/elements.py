@@ -134,6 +134,7 @@ def check_elements(values: dict[str, Any], error: type[Exception] = ParameterErr
     element (and ``owners[name][index]``). A value must be real numbers: bools (``True`` is not
     a compliance), text, ``None``, complex numbers and masked arrays are refused, naming the field."""
     from h4pin.inputs import describe, real_array  # h4pin.inputs imports nothing of h4pin.description
+    from h4pin.limits import ELEMENT_RANGES, ImplausibleValueError
 
     out = {}
     prefix = f"{where}: " if where else ""
@@ -155,8 +156,6 @@ def check_elements(values: dict[str, Any], error: type[Exception] = ParameterErr
             owner = owners[name][k] if owners else element_name(name, k)
             rule = "> 0; inf switches it off" if rigidity else "finite and >= 0; 0 switches it off"
             raise error(f"{prefix}{owner}: {name} = {float(arr[k])!r} is not physical (must be {rule})")
-        from h4pin.limits import ELEMENT_RANGES, ImplausibleValueError
-
         lo, hi = ELEMENT_RANGES[UNITS[name]]
         odd = (arr != 0.0) & np.isfinite(arr) & ((arr < lo) | (arr > hi))
         if np.any(odd):

@@ -190,9 +190,6 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
     except Exception as exc:  # Pinocchio's reader: ValueError, RuntimeError, IndexError, ...
         raise MalformedURDFError(f"{path}: Pinocchio's MJCF reader fails ({type(exc).__name__}: {exc})") from None
 
-    def jname(i: int) -> str:
-        return _joint_name(mj, i)
-
     eq = {int(mujoco.mjtEq.mjEQ_JOINT): "joint", int(mujoco.mjtEq.mjEQ_TENDON): "tendon",
           int(mujoco.mjtEq.mjEQ_CONNECT): "connect", int(mujoco.mjtEq.mjEQ_WELD): "weld"}
     kinds = [eq.get(int(mj.eq_type[i]), "other") for i in range(mj.neq)]
@@ -208,7 +205,7 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
     for b in range(mj.nbody):
         joints = list(range(mj.body_jntadr[b], mj.body_jntadr[b] + mj.body_jntnum[b]))
         if len(joints) > 1:
-            names_of[f"Composite_{jname(joints[0])}"] = [jname(i) for i in joints]
+            names_of[f"Composite_{_joint_name(mj, joints[0])}"] = [_joint_name(mj, i) for i in joints]
     model, ids = _split(model, names_of)
     welds = [cm for cm in cms if cm.type == pin.ContactType.CONTACT_6D]
     out_cms = []
@@ -237,7 +234,7 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
     lo, hi = np.full(model.nq, np.nan), np.full(model.nq, np.nan)
     springs, rest = {}, {}
     for i in range(mj.njnt):
-        name = jname(i)
+        name = _joint_name(mj, i)
         if not model.existJointName(name):
             raise MalformedURDFError(f"{path}: joint {name!r} of the file is not in Pinocchio's model")
         jm = model.joints[model.getJointId(name)]
@@ -257,7 +254,7 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
         j1, j2 = mj.eq_obj1id[i], mj.eq_obj2id[i]
         origin1 = float(mj.qpos0[mj.jnt_qposadr[j1]]) - _ref(mj, j1)
         origin2 = float(mj.qpos0[mj.jnt_qposadr[j2]]) - _ref(mj, j2) if j2 >= 0 else 0.0
-        couplings.append(JointCoupling(jname(j1), jname(j2) if j2 >= 0 else None,
+        couplings.append(JointCoupling(_joint_name(mj, j1), _joint_name(mj, j2) if j2 >= 0 else None,
                                        tuple(float(c) for c in mj.eq_data[i, :5]), origin1, origin2))
     motors, refused = [], []
     for a in range(mj.nu):
@@ -265,7 +262,7 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
         if int(mj.actuator_trntype[a]) not in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
             refused.append(aname)
             continue
-        joint = jname(mj.actuator_trnid[a, 0])
+        joint = _joint_name(mj, mj.actuator_trnid[a, 0])
         if not model.existJointName(joint):
             raise ParameterError(f"{path}: actuator {aname!r} drives joint {joint!r}, not a joint of the model")
         if joint not in motors:
