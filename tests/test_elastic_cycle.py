@@ -124,11 +124,11 @@ def test_vector_coordinates_give_the_same_mass_and_load(h4, cycle):
 def _spring_basis(h4, em, mm, q, names):
     """T at q: the admissible motions with the actuators locked, normalised on the springs."""
     from h4pin.elastic import engine
-    from h4pin.elastic.modal import _admissible
+    from h4pin.elastic.modal import admissible_basis
 
     d = mm.createData()
     pin.computeJointJacobians(mm, d, q)
-    b = _admissible(mm, em.constraint_models, q, em.locked, engine.stiffness_vector(mm, em.stiffness), d)
+    b = admissible_basis(mm, em.constraint_models, q, em.locked, engine.stiffness_vector(mm, em.stiffness), d)
     dofs = [mm.joints[mm.getJointId(n)].idx_v for n in names]
     return b @ np.linalg.inv(b[dofs])
 

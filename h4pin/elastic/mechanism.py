@@ -37,7 +37,7 @@ from h4pin._compat import constraint_calc
 from h4pin.elastic import engine
 from h4pin.elastic.couplings import JointCoupling
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
-from h4pin.elastic.modal import MASSLESS_TOL, _admissible, undamped_modes
+from h4pin.elastic.modal import MASSLESS_TOL, admissible_basis, undamped_modes
 from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
 from h4pin.kinematics.pinocchio import finite_configuration, model_configuration
 
@@ -418,7 +418,7 @@ class Mechanism:
         k = engine.stiffness_vector(model, stiff)
         pin.computeJointJacobians(model, d, q)
         _check_couplings(self, q)
-        n = _admissible(model, self.constraint_models, q, lock, k, d, _coupling_rows(self, q))
+        n = admissible_basis(model, self.constraint_models, q, lock, k, d, _coupling_rows(self, q))
         extra = None
         if payload is not None:
             frame, body = payload

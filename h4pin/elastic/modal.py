@@ -181,11 +181,13 @@ def mass_model(em: ElasticH4, link_inertias: bool = True) -> pin.Model:
     return models[link_inertias]
 
 
-def _admissible(model: pin.Model, constraint_models: Any, q: np.ndarray, locked: tuple[str, ...],
-                k: np.ndarray, d: pin.Data, extra_rows: np.ndarray | None = None) -> np.ndarray:
+def admissible_basis(model: pin.Model, constraint_models: Any, q: np.ndarray, locked: tuple[str, ...],
+                     k: np.ndarray, d: pin.Data, extra_rows: np.ndarray | None = None) -> np.ndarray:
     """N (nv, nz): a basis of the admissible motions ``dq = N z`` in scaled coordinates
-    (translations over the length scale), after the engine's closure and singularity checks.
-    ``pin.computeJointJacobians`` must have run in ``d`` at q."""
+    (translations over the length scale), after the engine's closure and singularity checks;
+    ``extra_rows`` (r, nv): further constraints (joint couplings). ``pin.computeJointJacobians``
+    must have run in ``d`` at q. Used by :meth:`h4pin.elastic.Mechanism.modes` and the elastic
+    cycle (:mod:`h4pin.studies.elastic_cycle`)."""
     length = engine.length_scale(model, d)
     cds = [cm.createData() for cm in constraint_models]
     for cm, cd in zip(constraint_models, cds, strict=True):
@@ -269,7 +271,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     q = em.configuration(x)
     k = engine.stiffness_vector(mm, em.stiffness)
     pin.computeJointJacobians(mm, d, q)
-    n = _admissible(mm, em.constraint_models, q, em.locked, k, d)
+    n = admissible_basis(mm, em.constraint_models, q, em.locked, k, d)
     jo = engine.output_jacobian(mm, d, em.outputs)
     jd = pin.getFrameJacobian(mm, d, mm.getFrameId("D"), pin.LOCAL)  # from data.J, before crba
     mass = pin.crba(mm, d, q)
@@ -288,4 +290,4 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     return Modes(freq, x, payload, massless, (shapes_tp, shapes_q))
 
 
-__all__ = ["MASSLESS_TOL", "Modes", "Payload", "mass_model", "modes", "undamped_modes"]
+__all__ = ["MASSLESS_TOL", "Modes", "Payload", "admissible_basis", "mass_model", "modes", "undamped_modes"]

@@ -43,7 +43,7 @@ import pinocchio as pin
 from h4pin import limits
 from h4pin.elastic import engine
 from h4pin.elastic.h4 import elastic_model
-from h4pin.elastic.modal import _admissible, mass_model
+from h4pin.elastic.modal import admissible_basis, mass_model
 from h4pin.errors import ParameterError
 from h4pin.kinematics import closed_form as cf
 from h4pin.robot import H4
@@ -272,7 +272,7 @@ def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float
 
     def basis(q: np.ndarray) -> np.ndarray:
         pin.computeJointJacobians(mm, d, q)
-        b = _admissible(mm, em.constraint_models, q, em.locked, kfull, d)
+        b = admissible_basis(mm, em.constraint_models, q, em.locked, kfull, d)
         if b.shape[1] != ns:
             raise ParameterError(f"the elastic robot has {b.shape[1]} admissible motions for {ns} springs: "
                                  "it is not statically determinate")
