@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin._compat import constraint_calc
-from h4pin.elastic import engine
+from h4pin.elastic import batch, engine
 from h4pin.elastic.couplings import JointCoupling
 from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
 from h4pin.elastic.modal import MASSLESS_TOL, admissible_basis, undamped_modes
@@ -47,16 +47,24 @@ ASSEMBLY_TOL = 1e-10
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class MechanismModes:
-    """Undamped modes of a mechanism at a configuration (:meth:`Mechanism.modes`).
+    """Undamped modes of a mechanism at a configuration or a batch (:meth:`Mechanism.modes`).
 
     Attributes:
-        frequencies: (m,) Hz, ascending (the massive directions; massless ones condensed).
-        shapes_q: (m, nv) mass-normalised joint motions. massless: directions condensed.
+        frequencies: (m,) Hz, ascending (the massive directions; massless ones condensed); for a
+            batch (N, m), NaN past a configuration's last.
+        shapes_q: (m, nv) mass-normalised joint motions (one configuration; None for a batch).
+        massless: the directions condensed (one configuration; None for a batch).
     """
 
     frequencies: np.ndarray
-    shapes_q: np.ndarray
-    massless: int
+    shapes_q: np.ndarray | None
+    massless: int | None
+
+    @property
+    def first(self) -> np.ndarray | float:
+        """The first frequency (Hz): a float, or (N,) for a batch."""
+        f = self.frequencies
+        return float(f[0]) if f.ndim == 1 else f[:, 0].copy()
 
 
 def _items(value: Any, single: tuple[type, ...], what: str) -> list[Any]:
@@ -174,6 +182,7 @@ class Mechanism:
         object.__setattr__(self, "actuated", _names(model, actuated, "actuated"))
         object.__setattr__(self, "name", name or model.name or "mechanism")
         object.__setattr__(self, "_local", threading.local())
+        object.__setattr__(self, "_cache", {})
         values = _file_data(model, self.constraint_models, reference, ranges, springs, couplings)
         for name, value in values.items():
             object.__setattr__(self, name, value)
@@ -315,11 +324,15 @@ class Mechanism:
             out[f"coupling {c.joint1}"] = (abs(c.residual_row(self.model, q)[0]), 0.0)
         return out
 
-    def assemble(self, q: Any = None, *, fixed: Iterable[Any] | None = None, tol: float = ASSEMBLY_TOL,
-                 iterations: int = 100) -> np.ndarray:
+    def assemble(self, q: Any = None, *, motors: Any = None, fixed: Iterable[Any] | None = None,
+                 tol: float = ASSEMBLY_TOL, iterations: int = 100) -> np.ndarray:
         """A configuration with every closure closed (within ``tol`` m, and rad for 6-D
         closures), from ``q`` (default :attr:`reference`, the file's) with the joints ``fixed``
         (default the actuated ones) held, every other one-coordinate joint kept in its range.
+        ``motors``: (n_act,) or (N, n_act) motor positions in :attr:`actuated` order (rad, m)
+        give (nq,) or (N, nq) configurations with the motors there, each closed from the one
+        before (continuation: order a grid so that neighbours follow each other); an error names
+        the first that does not close.
 
         The solver is a bounded trust-region least-squares (scipy's ``least_squares``, method
         ``trf``) on the closures' residuals, then Gauss-Newton to ``tol``. When ``fixed`` is not
@@ -338,8 +351,17 @@ class Mechanism:
             raise ParameterError(f"iterations: an integer >= 1, got {iterations!r}")
         model = self.model
         start = np.array(self.reference) if q is None else self._q(q)
+        if motors is not None and fixed is not None:
+            raise ParameterError("give motors= or fixed=, not both (motors holds the actuated joints)")
         held = _names(model, self.actuated if fixed is None else fixed, "fixed")
         held = held + tuple(n for n in self.beam_springs if n not in held)  # a beam's joints: rigid assembly
+        if motors is not None:
+            def close(s: np.ndarray) -> np.ndarray:
+                _check_ranges(self, s, held, "held")
+                return _close(self, s, held, float(tol), int(iterations), newton_first=True)
+
+            out, one = batch.assemble_motors(self, start, motors, close)
+            return out[0] if one else out
         _check_ranges(self, start, held, "held")
         try:
             return _close(self, start, held, float(tol), int(iterations))
@@ -377,61 +399,75 @@ class Mechanism:
         return names
 
     def compliance(self, q: Any, springs: Mapping[Any, Any], outputs: Sequence[Any],
-                   locked: Iterable[Any] = (), *, free_root: bool = False) -> np.ndarray:
-        """The (6 n, 6 n) compliance of n output frames at an assembled q: force at each frame's
-        origin and torque, world axes (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint:
-        stiffness}`` (N.m/rad, N/m; a scalar for every coordinate of a multi-coordinate joint, or
-        one value each), joints without a spring free, ``locked`` held, and a free-flyer root
-        (:attr:`free_flyers`) held unless ``free_root`` or it has a spring
-        (:func:`h4pin.elastic.engine.compliance_matrix`).
+                   locked: Iterable[Any] = (), *, free_root: bool = False, method: str = "auto",
+                   threads: int | None = None) -> np.ndarray:
+        """The (6 n, 6 n) compliance of n output frames at an assembled q (nq,), or (N, 6 n, 6 n)
+        at each of a batch Q (N, nq): force at each frame's origin and torque, world axes
+        (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint: stiffness}`` (N.m/rad, N/m; a
+        scalar for every coordinate of a multi-coordinate joint, or one value each), joints
+        without a spring free, ``locked`` held, and a free-flyer root (:attr:`free_flyers`)
+        held unless ``free_root`` or it has a spring (:func:`h4pin.elastic.engine.compliance_matrix`).
+        ``method``: ``auto``, ``compiled`` or ``pinocchio`` (:mod:`h4pin.elastic.batch`: the
+        compiled generic path, equal to the Pinocchio route to round-off); ``threads``: for a
+        batch (default one per core).
 
         Raises:
             ParameterError: an unknown joint or frame, a bad stiffness or q.
-            UnassembledError: a closure does not hold at q (its name and error).
+            UnassembledError: a closure does not hold at q (its name and error; for a batch, the
+                first such configuration's index).
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
+            TooLargeError: a batch over the memory or time limit.
         """
         stiff = self._springs(springs)
-        q = self._q(q)
-        _check_couplings(self, q)
-        return engine.compliance_matrix(self.model, self.constraint_models, q,
-                                        locked=self._locked(locked, stiff, free_root), stiffness=stiff,
-                                        outputs=_outputs(self, outputs), data=self.data,
-                                        extra_rows=_coupling_rows(self, q))
+        lock = self._locked(locked, stiff, free_root)
+        outs = _outputs(self, outputs)
+        method, threads = batch.check_method(method), batch.check_threads(threads)
+        Q, one = batch.configurations(self, q)
+        out = batch.compliance(self, Q, one, stiff, outs, lock, method, threads)
+        return out[0] if one else out
 
     def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
-              payload: tuple[str, Any] | None = None, free_root: bool = False) -> MechanismModes:
-        """Undamped natural modes at an assembled q with the model's inertias, the springs and
-        the locked joints of :meth:`compliance` (a free-flyer root held unless ``free_root``), and
-        an optional ``payload``: ``(frame,
-        h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in the frame's axes).
-        Massless directions are condensed statically (:func:`h4pin.elastic.modal.undamped_modes`).
+              payload: tuple[str, Any] | None = None, free_root: bool = False, method: str = "auto",
+              threads: int | None = None) -> MechanismModes:
+        """Undamped natural modes at an assembled q (nq,), or the frequencies at each of a batch
+        Q (N, nq), with the model's inertias, the springs and the locked joints of
+        :meth:`compliance` (a free-flyer root held unless ``free_root``), and an optional
+        ``payload``: ``(frame, h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in
+        the frame's axes). Massless directions are condensed statically
+        (:func:`h4pin.elastic.modal.undamped_modes`). One configuration gives the shapes too (the
+        Pinocchio route); a batch gives frequencies (N, m) (``method`` and ``threads`` as in
+        :meth:`compliance`); :attr:`MechanismModes.first` is the first frequency.
 
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
         """
-        from h4pin.elastic.modal import Payload
-
-        q = self._q(q)
         stiff = self._springs(springs)
         lock = self._locked(locked, stiff, free_root)
-        model, d = self.model, self.data
-        k = engine.stiffness_vector(model, stiff)
-        pin.computeJointJacobians(model, d, q)
-        _check_couplings(self, q)
-        n = admissible_basis(model, self.constraint_models, q, lock, k, d, _coupling_rows(self, q))
-        extra = None
-        if payload is not None:
-            frame, body = payload
-            if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
-                raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}")
-            jf = pin.getFrameJacobian(model, d, model.getFrameId(frame), pin.LOCAL)
-            extra = jf.T @ body.spatial() @ jf
-        mass = pin.crba(model, d, q)
-        mass = np.triu(mass) + np.triu(mass, 1).T
-        if extra is not None:
-            mass = mass + extra
-        freq, shapes, massless = undamped_modes(n, k, mass)
-        return MechanismModes(freq, shapes, massless)
+        method, threads = batch.check_method(method), batch.check_threads(threads)
+        Q, one = batch.configurations(self, q)
+        if one:
+            return _modes_one(self, Q[0], stiff, lock, payload)
+        freq = batch.frequencies(self, Q, stiff, lock, payload, method, threads,
+                                 lambda x: _modes_one(self, x, stiff, lock, payload).frequencies)
+        return MechanismModes(freq, None, None)
+
+
+def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...],
+               payload: Any) -> MechanismModes:
+    """:meth:`Mechanism.modes` at one configuration, by the Pinocchio route."""
+    model, d = mech.model, mech.data
+    k = engine.stiffness_vector(model, stiff)
+    pin.computeJointJacobians(model, d, q)
+    batch.check_couplings(mech, q)
+    n = admissible_basis(model, mech.constraint_models, q, lock, k, d, batch.coupling_rows(mech, q))
+    mass = pin.crba(model, d, q)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    pay = batch.payload_inertia(model, payload)
+    if pay is not None:
+        jf = pin.getJointJacobian(model, d, pay[0], pin.LOCAL)
+        mass = mass + jf.T @ pay[1].matrix() @ jf
+    freq, shapes, massless = undamped_modes(n, k, mass)
+    return MechanismModes(freq, shapes, massless)
 
 
 def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, springs: Any,
@@ -460,19 +496,6 @@ def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, spr
                   and not _tied(model, closures, j))
     return {"reference": ref, "ranges": (lo, hi), "springs": stiff, "spring_rest": {}, "couplings": cps,
             "beam_springs": {}, "_lift": None, "free_flyers": roots}
-
-
-def _check_couplings(mech: Mechanism, q: np.ndarray) -> None:
-    for c in mech.couplings:
-        r = c.residual_row(mech.model, q)[0]
-        if abs(r) > engine.CLOSURE_TOL:
-            raise UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
-
-
-def _coupling_rows(mech: Mechanism, q: np.ndarray) -> np.ndarray | None:
-    if not mech.couplings:
-        return None
-    return np.array([c.residual_row(mech.model, q)[1] for c in mech.couplings])
 
 
 def _check_ranges(mech: Mechanism, q: np.ndarray, joints: Iterable[str], what: str) -> None:
@@ -508,8 +531,11 @@ def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
     return out
 
 
-def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, iterations: int) -> np.ndarray:
-    """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`)."""
+def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, iterations: int,
+           newton_first: bool = False) -> np.ndarray:
+    """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`); ``newton_first``:
+    Gauss-Newton's least-norm steps alone first (continuation from a neighbour: the nearest
+    closed configuration, not the trust region's), the trust region only if they fail."""
     from scipy.optimize import least_squares
 
     model, d = mech.model, mech.data
@@ -551,6 +577,21 @@ def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, 
 
     if not mech.constraint_models and not mech.couplings:
         return q0
+    if newton_first and free.any():
+        q = q0
+        for _ in range(iterations):
+            r, jc, worst = residual(q)
+            if worst[0] <= 1e-3 * tol:  # Newton converges quadratically: a step more is all but free
+                try:
+                    _check_ranges(mech, q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
+                    return q
+                except UnassembledError:
+                    break
+            step = np.zeros(model.nv)
+            step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
+            if not np.all(np.isfinite(step)) or np.linalg.norm(step) > 1.0:
+                break
+            q = pin.integrate(model, q, step)
     if free.any():
         last: dict[bytes, Any] = {}
 

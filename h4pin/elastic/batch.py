@@ -1,0 +1,250 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Batches of configurations for :class:`h4pin.elastic.Mechanism`: the route of each call (the
+compiled generic path of :mod:`h4pin.elastic.compiled`, or Pinocchio's), blocks of
+configurations over threads, a size estimate before anything is allocated, and assembly over a
+list of motor positions by continuation.
+
+``method``: ``"auto"`` (default) takes the compiled path when the model's joints are all of the
+kinds it computes and its code is compiled (until then the Pinocchio route, while h4pin's
+background warm-up compiles it: :mod:`h4pin._jit`); ``"compiled"`` insists (compiling in the
+calling process if needed); ``"pinocchio"`` is the reference route. A configuration the compiled
+path flags (a closure off, a near-singular elimination or reduced stiffness, nothing with mass) is
+run through the Pinocchio route, whose verdict and message stand, so both routes refuse the same
+configurations with the same errors.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from h4pin import _jit, limits
+from h4pin.elastic import compiled, engine
+from h4pin.errors import H4Error, ParameterError
+
+METHODS = ("auto", "compiled", "pinocchio")
+GATE = _jit.Gate("generic mechanism path", compiled.batch)
+#: Configurations per block handed to one thread.
+BLOCK = 64
+#: Bytes a configuration of a batch holds besides its outputs (its copy, status, coupling rows),
+#: and configurations a second of the compiled path on one core (measured about 2e4 on the 48-DoF
+#: robots of the corpus, one thread; rounded down).
+BYTES_PER_CONFIGURATION = 256
+CONFIGURATIONS_PER_S = 1e4
+
+
+def check_method(method: Any) -> str:
+    if not isinstance(method, str) or method not in METHODS:
+        raise ParameterError(f"method: one of {', '.join(METHODS)}, got {method!r}")
+    return method
+
+
+def check_threads(threads: Any) -> int:
+    if threads is None:
+        return os.cpu_count() or 1
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ParameterError(f"threads: an integer >= 1 (default: one per core), got {threads!r}")
+    return int(threads)
+
+
+def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool]:
+    """``(Q (N, nq), one)``: a configuration (nq,) or a batch (N, nq) of ``mech`` (or of the
+    rigid mechanism a beam model lifts), checked; ``one`` when a single one was given."""
+    arr = np.asarray(q, dtype=object) if not isinstance(q, np.ndarray) else q
+    if np.ndim(arr) == 2:
+        n = len(arr)
+        if n == 0:
+            raise ParameterError(f"{what}: an empty batch (give at least one configuration)")
+        limits.check_size(f"{mech.name}: {n:,} configurations", n * (BYTES_PER_CONFIGURATION + 8 * mech.model.nq))
+        return np.array([mech._q(row, f"{what}[{i}]") for i, row in enumerate(arr)]), False
+    return mech._q(q, what)[None], True
+
+
+def _at(exc: H4Error, where: str | None) -> H4Error:
+    """``exc`` with ``where`` (which configuration of a batch) in front of its message."""
+    if where is not None and exc.args:
+        exc.args = (f"{where}: {exc.args[0]}",) + exc.args[1:]
+    return exc
+
+
+def _tables(mech: Any, payload: tuple[int, pin.Inertia] | None = None) -> compiled.Tables | None:
+    cache = mech._cache
+    key = ("tables", None if payload is None else (payload[0], payload[1].mass, *payload[1].lever,
+                                                   *payload[1].inertia.reshape(-1)))
+    if key not in cache:
+        extra = None if payload is None else {payload[0]: payload[1]}
+        cache[key] = compiled.tables(mech.model, mech.constraint_models, extra)
+    return cache[key]
+
+
+def _route(mech: Any, method: str, tab: compiled.Tables | None) -> bool:
+    """Whether this call takes the compiled path."""
+    if method == "pinocchio":
+        return False
+    if tab is None:
+        if method == "compiled":
+            raise ParameterError(f"{mech.name}: a joint of a kind the compiled path does not compute (revolute, "
+                                 "prismatic, spherical, free-flyer); use method='auto' or 'pinocchio'")
+        return False
+    if method == "compiled":
+        with _jit.compiling():
+            return GATE.ready
+    return GATE.ready
+
+
+def _run(mech: Any, tab: compiled.Tables, outs: compiled.Outputs, Q: np.ndarray, k: np.ndarray,
+         lock: Sequence[str], n_freq: int, threads: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled path over Q, in blocks over ``threads`` threads."""
+    model = mech.model
+    working = np.ones(model.nv, dtype=np.bool_)
+    for name in lock:
+        j = model.joints[model.getJointId(name)]
+        working[j.idx_v:j.idx_v + j.nv] = False
+    n, m = len(Q), len(outs.row_frame)
+    extra = np.zeros((n, len(mech.couplings), model.nv))
+    off = np.zeros(n, dtype=bool)  # a coupling that does not hold: the Pinocchio route says so
+    for i, q in enumerate(Q):
+        for r, c in enumerate(mech.couplings):
+            res, extra[i, r] = c.residual_row(model, q)
+            off[i] |= not abs(res) <= engine.CLOSURE_TOL
+    comp, freq = np.full((n, m, m), np.nan), np.full((n, n_freq), np.nan)
+    status = np.full(n, compiled.FLAGGED, dtype=np.int8)
+    args = (*tab, *outs, Q, k, working, extra, engine.CLOSURE_TOL)
+
+    def block(start: int) -> None:
+        compiled.batch(*args, start, min(start + BLOCK, n), comp, freq, status)
+
+    starts = range(0, n, BLOCK)
+    if threads == 1 or n <= BLOCK:
+        for s in starts:
+            block(s)
+    else:
+        with ThreadPoolExecutor(max_workers=min(threads, len(starts))) as pool:
+            list(pool.map(block, starts))
+    status[off] = compiled.FLAGGED
+    return comp, freq, status
+
+
+def compliance(mech: Any, Q: np.ndarray, one: bool, stiff: dict[str, Any], outs: list[Any], lock: tuple[str, ...],
+               method: str, threads: int) -> np.ndarray:
+    """(N, m, m) compliance of ``outs`` at each configuration of Q (:meth:`Mechanism.compliance`)."""
+    model = mech.model
+    tab = _tables(mech)
+    arrays = compiled.outputs(model, outs)
+    rows = len(arrays.row_frame)
+    limits.check_size(f"{mech.name}: compliance of {len(Q):,} configurations",
+                      len(Q) * 8 * rows * rows * 2, len(Q) / CONFIGURATIONS_PER_S)
+    if _route(mech, method, tab):
+        comp, _, status = _run(mech, tab, arrays, Q, engine.stiffness_vector(model, stiff), lock, 0, threads)
+    else:
+        comp, status = np.full((len(Q), rows, rows), np.nan), np.full(len(Q), compiled.FLAGGED, dtype=np.int8)
+    for i in np.flatnonzero(status != compiled.OK):
+        try:
+            check_couplings(mech, Q[i])
+            comp[i] = engine.compliance_matrix(model, mech.constraint_models, Q[i], locked=lock, stiffness=stiff,
+                                               outputs=outs, data=mech.data, extra_rows=coupling_rows(mech, Q[i]))
+        except H4Error as exc:
+            raise _at(exc, None if one else f"configuration {i}") from None
+    return comp
+
+
+def check_couplings(mech: Any, q: np.ndarray) -> None:
+    """UnassembledError when a joint coupling of ``mech`` does not hold at q."""
+    for c in mech.couplings:
+        r = c.residual_row(mech.model, q)[0]
+        if not abs(r) <= engine.CLOSURE_TOL:
+            raise engine.UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
+
+
+def coupling_rows(mech: Any, q: np.ndarray) -> np.ndarray | None:
+    """The couplings' rows (r, nv) at q, or None without couplings."""
+    if not mech.couplings:
+        return None
+    return np.array([c.residual_row(mech.model, q)[1] for c in mech.couplings])
+
+
+def payload_inertia(model: pin.Model, payload: Any) -> tuple[int, pin.Inertia] | None:
+    """``(joint id, inertia in that joint's frame)`` of ``(frame, h4pin.elastic.Payload)``."""
+    from h4pin.elastic.modal import Payload
+
+    if payload is None:
+        return None
+    try:
+        frame, body = payload
+    except (TypeError, ValueError):
+        raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}") from None
+    if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
+        raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}")
+    f = model.frames[model.getFrameId(frame)]
+    inertia = pin.Inertia(float(body.mass), np.asarray(body.com, dtype=float), np.asarray(body.inertia, dtype=float))
+    return int(f.parentJoint), f.placement.act(inertia)
+
+
+def frequencies(mech: Any, Q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...], payload: Any,
+                method: str, threads: int, one_config: Any) -> np.ndarray:
+    """(N, m) natural frequencies (Hz, ascending, NaN past a configuration's last) at each
+    configuration of Q; ``one_config(q)`` is the Pinocchio route's frequencies at one q."""
+    model = mech.model
+    pay = payload_inertia(model, payload)
+    tab = _tables(mech, pay)
+    limits.check_size(f"{mech.name}: natural frequencies of {len(Q):,} configurations",
+                      len(Q) * 8 * (model.nv + 1) * 2, 3 * len(Q) / CONFIGURATIONS_PER_S)
+    rows: list[np.ndarray | None] = [None] * len(Q)
+    if _route(mech, method, tab):
+        arrays = compiled.outputs(model, [])
+        _, freq, status = _run(mech, tab, arrays, Q, engine.stiffness_vector(model, stiff), lock, model.nv, threads)
+        for i in np.flatnonzero(status == compiled.OK):
+            rows[i] = freq[i][np.isfinite(freq[i])]
+    for i, row in enumerate(rows):
+        if row is None:
+            try:
+                rows[i] = one_config(Q[i])
+            except H4Error as exc:
+                raise _at(exc, f"configuration {i}") from None
+    out = np.full((len(Q), max(len(r) for r in rows)), np.nan)
+    for i, r in enumerate(rows):
+        out[i, :len(r)] = r
+    return out
+
+
+def assemble_motors(mech: Any, start: np.ndarray, motors: Any, close: Any) -> tuple[np.ndarray, bool]:
+    """Configurations with the motors at ``motors`` ((n_act,) or (N, n_act), in
+    ``mech.actuated`` order), each closed from the one before (continuation; the first from
+    ``start``) by ``close(start)``; and whether one row was given."""
+    model = mech.model
+    idx = []
+    for name in mech.actuated:
+        j = model.joints[model.getJointId(name)]
+        if j.nq != 1 or j.nv != 1:
+            raise ParameterError(f"motors: motor joint {name!r} has {j.nq} coordinates; only one-coordinate motors "
+                                 "can be set by value (use assemble(q, fixed=...))")
+        idx.append(j.idx_q)
+    try:
+        m = np.asarray(motors, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"motors: numbers, shape ({len(idx)},) or (N, {len(idx)}), got {motors!r}") from None
+    one = m.ndim == 1
+    m = np.atleast_2d(m)
+    if m.ndim != 2 or m.shape[1] != len(idx) or len(m) == 0:
+        raise ParameterError(f"motors: shape ({len(idx)},) or (N, {len(idx)}) (the motors {list(mech.actuated)}), "
+                             f"got {np.shape(motors)}")
+    bad = np.flatnonzero(~np.all(np.isfinite(m), axis=1))
+    if bad.size:
+        raise ParameterError(f"motors[{bad[0]}]: not finite ({m[bad[0]].tolist()})")
+    limits.check_size(f"{mech.name}: assembly at {len(m):,} motor positions", len(m) * 8 * (model.nq + 2 * len(idx)),
+                      len(m) / 200.0)
+    out = np.zeros((len(m), model.nq))
+    q = np.array(start)
+    for i, row in enumerate(m):
+        q[idx] = row
+        try:
+            q = close(q)
+        except H4Error as exc:
+            raise _at(exc, None if one else f"motors[{i}] = {row.tolist()}") from None
+        out[i] = q
+    return out, one
