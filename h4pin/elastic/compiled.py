@@ -604,7 +604,8 @@ def batch(parents, kind, axis, rot, pos, idx_q, idx_v, nv_j, ancestor, col_joint
     """The arrays of :class:`Tables` and :class:`Outputs`, in order, then: compliance (m, m)
     into ``comp[i]`` and, when ``freq`` has columns, the first frequencies into ``freq[i]``, for
     configurations ``Q[start:stop]``; ``k`` (nv,) springs, ``working`` (nv,) the coordinates not
-    locked, ``extra`` (N, r, nv) further rows (couplings), ``tol`` the closures' tolerance. ``status[i]``: OK, or FLAGGED for the Pinocchio route to decide."""
+    locked, ``extra`` (N, r, nv) further rows (couplings), ``tol`` the closures' tolerance.
+    ``status[i]``: OK, or FLAGGED for the Pinocchio route to decide."""
     nj, nv = len(parents), len(k)
     orot, opos = np.zeros((nj, 3, 3)), np.zeros((nj, 3))
     jac = np.zeros((6, nv))
