@@ -449,7 +449,9 @@ def sweep(
     figure: Path | None = typer.Option(None, "--figure", metavar="PATH", help="write the Pareto figure to this PNG"),
     urdf_dir: Path | None = typer.Option(None, metavar="DIR", help="write the best designs here as URDF variants"),
     frequency: bool = typer.Option(False, "--frequency",
-                                   help="also each design's first natural frequency (lowest over the task box)"),
+                                   help="also each design's first natural frequency (Hz): the lowest over the task "
+                                   "box's centre and 16 corners that the design reaches, not the box's lowest "
+                                   "(a few per cent above it, more where a corner is out of reach; docs/modes.md)"),
     quiet: bool = typer.Option(False, "--quiet", help=QUIET),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
     pareto: Path | None = typer.Option(None, "--pareto", hidden=True, help="old name of --figure"),

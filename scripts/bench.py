@@ -292,7 +292,7 @@ def big_stream(h4: h4pin.H4, n: int, chunk: int) -> tuple[float, float, float]:
     return time.perf_counter() - t0, peak_rss_mb(), worst
 
 
-def main() -> None:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=100_000, help="poses in the batch row")
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs per row")
@@ -311,7 +311,11 @@ def main() -> None:
                         help="only the generic engine's rows: corpus robots, a plain KKT loop, Mechanism, with beams")
     parser.add_argument("--all", action="store_true",
                         help="every row of the release note in one run: the table, --pareto 100000 and --cold")
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = _parser().parse_args()
     if args.mechanisms:
         mechanism_rows(args.repeat)
         return
@@ -324,44 +328,62 @@ def main() -> None:
     rng = np.random.default_rng(0)
     poses = centre_pose(h4) + rng.uniform(-1, 1, (args.batch, 4)) * [0.1, 0.1, 0.06, 0.4]
     poses = poses[np.all(np.isfinite(h4.inverse_geometry(poses, on_error="nan")), axis=1)]
+    t = speed_timings(h4, poses, args.repeat, 1000 if args.batch >= 100_000 else 200)
+    agreement = check_agreement(h4, poses)
+    speed_table(t, len(poses), args.repeat, agreement)
+    targets(t)
+    for option, section in OPTIONAL_SECTIONS:
+        if option(args):
+            section(args, h4)
+
+
+def speed_timings(h4: h4pin.H4, poses: np.ndarray, repeat: int, fatlas_side: int) -> dict:
+    """Every row of the main table, in seconds a pose (the kernel rows: a dict by (model, threads));
+    ``fatlas_side``: the side of the frequency atlas's grid."""
     n_single = 2000
     few = poses[:n_single]
-
-    t_batch = best_of(args.repeat, lambda: compliance(h4, poses, "paper", method="closed_form"))
-    t_batch_c = best_of(args.repeat, lambda: compliance(h4, poses, "consistent", method="closed_form"))
-    t_default = best_of(args.repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
-    t_single = best_of(args.repeat, lambda: [compliance(h4, x, "paper") for x in few]) / n_single
-    t_single_pin = best_of(args.repeat, lambda: [compliance(h4, x, "paper", method="pinocchio")
-                                                 for x in few[:500]]) / 500
-    t_naive = best_of(args.repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
-    t_statics = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
-    t_fd = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
-    t_kernel, t_one = kernel_rows(h4, poses, args.repeat)
-    t_default = {}
+    t = {"batch": best_of(repeat, lambda: compliance(h4, poses, "paper", method="closed_form")),
+         "batch_c": best_of(repeat, lambda: compliance(h4, poses, "consistent", method="closed_form"))}
+    best_of(repeat, lambda: compliance(h4, poses, "paper"))  # the default path once, before its rows
+    t["single"] = best_of(repeat, lambda: [compliance(h4, x, "paper") for x in few]) / n_single
+    t["single_pin"] = best_of(repeat, lambda: [compliance(h4, x, "paper", method="pinocchio")
+                                               for x in few[:500]]) / 500
+    t["naive"] = best_of(repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
+    t["statics"] = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
+    t["fd"] = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
+    t["kernel"], t["one"] = kernel_rows(h4, poses, repeat)
+    t["default"] = {}
     for threads in (1, 2):
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-        t_default[threads] = best_of(args.repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
+        t["default"][threads] = best_of(repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    t_terms = best_of(args.repeat, lambda: compliance(h4, poses, "paper", terms=True)) / len(poses)
+    t["terms"] = best_of(repeat, lambda: compliance(h4, poses, "paper", terms=True)) / len(poses)
     x0 = few[0]
-    t_small = {n: best_of(args.repeat, lambda n=n: [compliance(h4, few[:n]) for _ in range(200)]) / 200
-               for n in (1, 10)}
-    mem_default, mem_terms = (bytes_per_pose_of(lambda t=t: compliance(h4, poses, "paper", terms=t), len(poses))
-                              for t in (False, True))
-    t_single_terms = best_of(args.repeat, lambda: [compliance(h4, x0, "paper", terms=True) for _ in range(2000)]) / 2000
+    t["small"] = {n: best_of(repeat, lambda n=n: [compliance(h4, few[:n]) for _ in range(200)]) / 200
+                  for n in (1, 10)}
+    t["mem_default"], t["mem_terms"] = (
+        bytes_per_pose_of(lambda terms=terms: compliance(h4, poses, "paper", terms=terms), len(poses))
+        for terms in (False, True))
+    t["single_terms"] = best_of(repeat, lambda: [compliance(h4, x0, "paper", terms=True) for _ in range(2000)]) / 2000
     with_el = h4.with_elements(ILLUSTRATIVE)
     numba.set_num_threads(1)
-    t_el_batch = best_of(args.repeat, lambda: compliance(with_el, poses, "paper")) / len(poses)
-    t_el_off = best_of(args.repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
+    t["el_batch"] = best_of(repeat, lambda: compliance(with_el, poses, "paper")) / len(poses)
+    t["el_off"] = best_of(repeat, lambda: compliance(h4, poses, "paper")) / len(poses)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    t_el_single = best_of(args.repeat, lambda: [compliance(with_el, x, "paper") for x in few[:500]]) / 500
-    t_el_numpy = best_of(1, lambda: compliance(with_el, few[:100], "paper", method="closed_form")) / 100
-    t_atlas = atlas_row(h4, args.repeat)
-    t_modes = modes_rows(h4, poses, args.repeat)
-    t_fatlas = frequency_atlas_row(h4, 1000 if args.batch >= 100_000 else 200)
+    t["el_single"] = best_of(repeat, lambda: [compliance(with_el, x, "paper") for x in few[:500]]) / 500
+    t["el_numpy"] = best_of(1, lambda: compliance(with_el, few[:100], "paper", method="closed_form")) / 100
+    t["atlas"] = atlas_row(h4, repeat)
+    t["modes"] = modes_rows(h4, poses, repeat)
+    t["fatlas"] = frequency_atlas_row(h4, fatlas_side)
+    return t
 
-    ours = compliance(h4, few[:50], "paper", method="closed_form").matrix
-    naive = np.array([naive_compliance(h4.params, x) for x in few[:50]])
+
+def check_agreement(h4: h4pin.H4, poses: np.ndarray) -> tuple[float, float, float]:
+    """The naive eq. 30 and the pipeline against h4pin's reference (relative), exiting when they
+    disagree; and the pipeline's output bytes a pose."""
+    few = poses[:50]
+    ours = compliance(h4, few, "paper", method="closed_form").matrix
+    naive = np.array([naive_compliance(h4.params, x) for x in few])
     agree = np.max(np.abs(ours - naive)) / np.max(np.abs(ours))
     if agree > 1e-10:
         raise SystemExit(f"naive eq. 30 and h4pin disagree: {agree:.1e} relative")
@@ -370,61 +392,72 @@ def main() -> None:
     agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
     if agree_k > 1e-12:
         raise SystemExit(f"pipeline and h4pin disagree: {agree_k:.1e} relative")
-    bytes_per_pose = sum(a.nbytes for a in fast if a is not None) / len(poses)
+    return agree, agree_k, sum(a.nbytes for a in fast if a is not None) / len(poses)
 
-    per_pose = t_batch / len(poses)
-    print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {len(poses)} batch poses, "
-          f"best of {args.repeat} (naive vs h4pin: {agree:.1e}, pipeline vs h4pin: {agree_k:.1e} relative), "
-          f"load average before: {os.getloadavg()[0]:.2f}\n")
+
+def _speed_rows(t: dict, n_poses: int) -> list[tuple[str, float]]:
     rows = [
-        ("numpy batch (reference), 'paper', incl. inverse geometry", per_pose),
-        ("numpy batch (reference), 'consistent', incl. inverse geometry", t_batch_c / len(poses)),
-        ("h4pin.compliance(h4, poses): default batch path, 1 thread", t_default[1]),
-        ("h4pin.compliance(h4, poses): default batch path, 2 threads", t_default[2]),
-        ("h4pin.compliance(h4, pose): default one-pose path", t_single),
-        ("h4pin.compliance(h4, pose, method='pinocchio')", t_single_pin),
-        ("h4pin.compliance, robot with every element kind, batch", t_el_batch),
-        ("h4pin.compliance, robot with every element kind, one pose", t_el_single),
-        ("  the same, numpy path (statics route per pose, as before)", t_el_numpy),
-        ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t_atlas),
-        ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t_naive),
-        ("validation: Newton-Euler statics route", t_statics),
-        ("validation: finite-difference route (non-linear)", t_fd),
-        ("h4pin.compliance(h4, poses, terms=True): batch with terms", t_terms),
-        ("h4pin.compliance(h4, pose, terms=True): one pose with terms", t_single_terms),
-        ("h4pin.compliance(h4, poses) for a batch of 1 pose (per call)", t_small[1]),
-        ("h4pin.compliance(h4, poses) for a batch of 10 poses (per call)", t_small[10]),
+        ("numpy batch (reference), 'paper', incl. inverse geometry", t["batch"] / n_poses),
+        ("numpy batch (reference), 'consistent', incl. inverse geometry", t["batch_c"] / n_poses),
+        ("h4pin.compliance(h4, poses): default batch path, 1 thread", t["default"][1]),
+        ("h4pin.compliance(h4, poses): default batch path, 2 threads", t["default"][2]),
+        ("h4pin.compliance(h4, pose): default one-pose path", t["single"]),
+        ("h4pin.compliance(h4, pose, method='pinocchio')", t["single_pin"]),
+        ("h4pin.compliance, robot with every element kind, batch", t["el_batch"]),
+        ("h4pin.compliance, robot with every element kind, one pose", t["el_single"]),
+        ("  the same, numpy path (statics route per pose, as before)", t["el_numpy"]),
+        ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t["atlas"]),
+        ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t["naive"]),
+        ("validation: Newton-Euler statics route", t["statics"]),
+        ("validation: finite-difference route (non-linear)", t["fd"]),
+        ("h4pin.compliance(h4, poses, terms=True): batch with terms", t["terms"]),
+        ("h4pin.compliance(h4, pose, terms=True): one pose with terms", t["single_terms"]),
+        ("h4pin.compliance(h4, poses) for a batch of 1 pose (per call)", t["small"][1]),
+        ("h4pin.compliance(h4, poses) for a batch of 10 poses (per call)", t["small"][10]),
     ]
-    for (model, threads), t in t_kernel.items():
+    for (model, threads), secs in t["kernel"].items():
         into = "into out= " in model
         name = model.rpartition(" ")[2]
         label = "pipeline batch into out=" if into else "pipeline batch"
-        rows.append((f"{label}, '{name}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", t))
-    rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t_one))
+        rows.append((f"{label}, '{name}', {threads} thread{'s' * (threads > 1)}, incl. IGM + verdict", secs))
+    rows.append(("kernel, one pose (Kernel call, incl. Python overhead)", t["one"]))
+    modes = t["modes"]
     rows += [
-        ("h4pin.modes(h4, pose): all frequencies, one pose", t_modes["twin, one pose"]),
-        ("h4pin.modes(h4, poses): batch, all frequencies", t_modes["twin, batch, all"]),
-        ("  the same, the first four frequencies (frequencies(count=4))", t_modes["twin, batch, first four"]),
-        ("h4pin.modes, robot with every element kind, batch", t_modes["twin, batch, elements"]),
-        ("  Pinocchio route (method='pinocchio', as before), one pose", t_modes["pinocchio, one pose"]),
-        ("  Pinocchio route, robot with every element kind", t_modes["pinocchio, elements"]),
-        ("atlas with first frequency, 1e6 poses (per pose)", t_fatlas),
+        ("h4pin.modes(h4, pose): all frequencies, one pose", modes["twin, one pose"]),
+        ("h4pin.modes(h4, poses): batch, all frequencies", modes["twin, batch, all"]),
+        ("  the same, the first four frequencies (frequencies(count=4))", modes["twin, batch, first four"]),
+        ("h4pin.modes, robot with every element kind, batch", modes["twin, batch, elements"]),
+        ("  Pinocchio route (method='pinocchio', as before), one pose", modes["pinocchio, one pose"]),
+        ("  Pinocchio route, robot with every element kind", modes["pinocchio, elements"]),
+        ("atlas with first frequency, 1e6 poses (per pose)", t["fatlas"]),
     ]
+    return rows
+
+
+def speed_table(t: dict, n_poses: int, repeat: int, agreement: tuple[float, float, float]) -> None:
+    """The main table: each row's poses/s, us/pose, against the naive code, the batch and the
+    previous release, and the pipeline's share of the cores' peak."""
+    agree, agree_k, bytes_per_pose = agreement
+    per_pose = t["batch"] / n_poses
+    print(f"h4pin compliance speed, {platform.processor() or platform.machine()}, {n_poses} batch poses, "
+          f"best of {repeat} (naive vs h4pin: {agree:.1e}, pipeline vs h4pin: {agree_k:.1e} relative), "
+          f"load average before: {os.getloadavg()[0]:.2f}\n")
+    rows = _speed_rows(t, n_poses)
     peak = peak_flops()
     dgemm = measured_dgemm()
     print(f"| {'path':<64} | {'poses/s':>10} | {'us/pose':>9} | {'vs naive':>8} | {'vs batch':>8} "
           f"| {'before':>9} | {'vs prev.':>8} | {'of peak':>7} |")
     print(f"|{'-' * 66}|{'-' * 12}|{'-' * 11}|{'-' * 10}|{'-' * 10}|{'-' * 11}|{'-' * 10}|{'-' * 9}|")
-    for name, t in rows:
+    for name, secs in rows:
         prev = PREVIOUS.get(name)
-        vs_prev = f"{prev / (t * 1e6):>7.2f}x" if prev else f"{'':>8}"
+        vs_prev = f"{prev / (secs * 1e6):>7.2f}x" if prev else f"{'':>8}"
         before = f"{prev:>9.2f}" if prev else f"{'':>9}"
         hw = ""
         if "pipeline batch" in name and peak:
             threads = int(name.split(" thread")[0].rsplit(" ", 1)[-1])
-            hw = f"{KERNEL_FLOPS / t / (peak * threads):.1%}"
-        print(f"| {name:<64} | {1 / t:>10.0f} | {t * 1e6:>9.2f} | {t_naive / t:>7.1f}x | {per_pose / t:>7.2f}x "
-              f"| {before} | {vs_prev} | {hw:>7} |")
+            hw = f"{KERNEL_FLOPS / secs / (peak * threads):.1%}"
+        print(f"| {name:<64} | {1 / secs:>10.0f} | {secs * 1e6:>9.2f} | {t['naive'] / secs:>7.1f}x "
+              f"| {per_pose / secs:>7.2f}x | {before} | {vs_prev} | {hw:>7} |")
     print("\n'before' (us/pose) and 'vs prev.': the same row in the previous release (commit 7099350: a scalar and "
           "a lane kernel, element terms in numpy per pose, natural frequencies through Pinocchio), measured on this "
           "machine; the Pinocchio and numpy-element rows above are those routes, still there, measured now.")
@@ -434,22 +467,26 @@ def main() -> None:
               f"numpy's dgemm reaches {dgemm / 1e9:.1f} GFLOP/s on one core here ({dgemm / peak:.0%} of that peak).")
     floor = 5 * 64 * 8 + 4 * 8 + 8 + 1 + 4 * 8
     print(f"pipeline output without terms: {bytes_per_pose:.0f} bytes/pose (K, q, condition, status); "
-          f"h4pin.compliance peak memory a pose: {mem_default:.0f} B, {mem_terms:.0f} B with terms (the arrays a "
-          f"result with terms holds: K and 4 terms 2560 B, q, condition, status, pose: {floor} B)")
+          f"h4pin.compliance peak memory a pose: {t['mem_default']:.0f} B, {t['mem_terms']:.0f} B with terms (the "
+          f"arrays a result with terms holds: K and 4 terms 2560 B, q, condition, status, pose: {floor} B)")
 
+
+def targets(t: dict) -> None:
+    """The release's speed and memory targets, each met or missed."""
     print("\ntargets:")
-    one_core = min(1 / t_kernel["paper", 1], 1 / t_kernel["consistent", 1])
-    two_cores = min(1 / t_kernel["paper", 2], 1 / t_kernel["consistent", 2])
+    kern = t["kernel"]
+    one_core = min(1 / kern["paper", 1], 1 / kern["consistent", 1])
+    two_cores = min(1 / kern["paper", 2], 1 / kern["consistent", 2])
     checks = [  # (what, measured, target, unit, True: at least / False: at most)
         ("default batch, 1 core", one_core, 1_200_000, "poses/s", True),
         ("default batch, 2 cores / 1 core", two_cores / one_core, 1.9, "x", True),
-        ("  the same into out= (no page faults)",
-         t_kernel["into out= paper", 1] / t_kernel["into out= paper", 2], 1.9, "x", True),
-        ("one pose, h4pin.compliance", t_single * 1e6, 4.0, "us", False),
-        ("every element kind / elements off, batch", t_el_batch / t_el_off, 2.0, "x", False),
-        ("modes, first four frequencies, 1 core", t_modes["twin, batch, first four"] * 1e6, 20.0, "us", False),
-        ("terms=True batch / default batch", t_terms / t_default[2], 1.3, "x", False),
-        ("default batch, memory a pose", mem_default, 600, "B", False),
+        ("  the same into out= (no page faults)", kern["into out= paper", 1] / kern["into out= paper", 2], 1.9, "x",
+         True),
+        ("one pose, h4pin.compliance", t["single"] * 1e6, 4.0, "us", False),
+        ("every element kind / elements off, batch", t["el_batch"] / t["el_off"], 2.0, "x", False),
+        ("modes, first four frequencies, 1 core", t["modes"]["twin, batch, first four"] * 1e6, 20.0, "us", False),
+        ("terms=True batch / default batch", t["terms"] / t["default"][2], 1.3, "x", False),
+        ("default batch, memory a pose", t["mem_default"], 600, "B", False),
     ]
     for name, got, want, unit, at_least in checks:
         ok = got >= want if at_least else got <= want
@@ -458,43 +495,58 @@ def main() -> None:
     print(f"  (numba threads available: {numba.config.NUMBA_NUM_THREADS}, threading layer: "
           f"{numba.threading_layer()})")
 
-    if args.atlas_stream:
-        atlas_stream_row()
-    if args.big:
-        n = 10_000_000
-        secs, rss, worst = big_stream(h4, n, kernel.CHUNK)
-        print(f"\nstreaming {n:.0e} poses in chunks of {kernel.CHUNK}: {secs:.1f} s ({n / secs:,.0f} poses/s), "
-              f"peak RSS {rss:.0f} MB (target < 1024 MB: {'met' if rss < 1024 else 'MISSED'}), "
-              f"worst K_xx {worst * 1e6:.1f} um/N")
-    if args.dask or args.sweep:
-        from h4pin.studies import sweep
 
-        if args.dask:
-            over = sweep.dask_overhead(workers=2)
-            print(f"\nDask LocalCluster (2 workers): {over * 1e3:.2f} ms overhead per task")
-        if args.sweep:
-            print(f"\nsweep: {args.designs} designs x 1000 task poses (+ the volume grid)")
-            for label, kwargs in (("1 core", {"threads": 1}), ("2 cores", {"threads": 2}),
-                                  ("2 Dask workers", {"threads": 1, "workers": 2})):
-                secs, evals = sweep.bench(args.designs, **kwargs)
-                print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
-            print("\nsweep per-design overhead (sweep.evaluate with the kernel's compiled call left out; "
-                  "target <= 20 % of the kernel's time for the 1000 task poses)")
-            rows = {"1 thread": [sweep_overhead()]}
-            with sweep._client(2, None) as client:
-                rows["2 Dask workers, each"] = list(client.run(sweep_overhead).values())
-            for label, results in rows.items():
-                for ev, over, k_task in results:
-                    print(f"  {label:<22} evaluate {ev * 1e3:.3f} ms/design (2728 poses), "
-                          f"overhead {over * 1e3:.3f} ms, kernel {k_task * 1e3:.3f} ms (1000 poses): "
-                          f"{over / k_task:.0%}")
-    if args.tolerance:
-        bench_tolerance()
-    if args.pareto:
-        pareto_row(args.pareto)
-    if args.all:
-        print()
-        cold_table()
+def big_section(args: argparse.Namespace, h4: h4pin.H4) -> None:
+    n = 10_000_000
+    secs, rss, worst = big_stream(h4, n, kernel.CHUNK)
+    print(f"\nstreaming {n:.0e} poses in chunks of {kernel.CHUNK}: {secs:.1f} s ({n / secs:,.0f} poses/s), "
+          f"peak RSS {rss:.0f} MB (target < 1024 MB: {'met' if rss < 1024 else 'MISSED'}), "
+          f"worst K_xx {worst * 1e6:.1f} um/N")
+
+
+def dask_section(args: argparse.Namespace, h4: h4pin.H4) -> None:
+    from h4pin.studies import sweep
+
+    over = sweep.dask_overhead(workers=2)
+    print(f"\nDask LocalCluster (2 workers): {over * 1e3:.2f} ms overhead per task")
+
+
+def sweep_section(args: argparse.Namespace, h4: h4pin.H4) -> None:
+    from h4pin.studies import sweep
+
+    print(f"\nsweep: {args.designs} designs x 1000 task poses (+ the volume grid)")
+    for label, kwargs in (("1 core", {"threads": 1}), ("2 cores", {"threads": 2}),
+                          ("2 Dask workers", {"threads": 1, "workers": 2})):
+        secs, evals = sweep.bench(args.designs, **kwargs)
+        print(f"  {label:<16} {secs:8.1f} s  {evals / secs:>12,.0f} design-poses/s")
+    print("\nsweep per-design overhead (sweep.evaluate with the kernel's compiled call left out; "
+          "target <= 20 % of the kernel's time for the 1000 task poses)")
+    rows = {"1 thread": [sweep_overhead()]}
+    with sweep._client(2, None) as client:
+        rows["2 Dask workers, each"] = list(client.run(sweep_overhead).values())
+    for label, results in rows.items():
+        for ev, over, k_task in results:
+            print(f"  {label:<22} evaluate {ev * 1e3:.3f} ms/design (2728 poses), "
+                  f"overhead {over * 1e3:.3f} ms, kernel {k_task * 1e3:.3f} ms (1000 poses): "
+                  f"{over / k_task:.0%}")
+
+
+def all_cold_section(args: argparse.Namespace, h4: h4pin.H4) -> None:
+    print()
+    cold_table()
+
+
+#: The optional sections after the main table, in the order they print: (whether the options ask
+#: for it, the section).
+OPTIONAL_SECTIONS = (
+    (lambda a: a.atlas_stream, lambda a, h4: atlas_stream_row()),
+    (lambda a: a.big, big_section),
+    (lambda a: a.dask, dask_section),
+    (lambda a: a.sweep, sweep_section),
+    (lambda a: a.tolerance, lambda a, h4: bench_tolerance()),
+    (lambda a: a.pareto, lambda a, h4: pareto_row(a.pareto)),
+    (lambda a: a.all, all_cold_section),
+)
 
 
 #: The previous release's frequency Pareto: the first frequency at the centre pose only, of at

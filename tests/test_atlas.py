@@ -114,6 +114,23 @@ def test_viewer_point_cloud(proto, ds):
         assert "atlas: compliance_max" in scene.legend[-1]
 
 
+def test_the_viewer_draws_the_quantities_the_atlas_holds(proto, ds):
+    """The point cloud's quantities are the store's data variables with their units: the atlas's
+    five; a variable added to the store is drawn (twice the compliance: twice the range, the same
+    colours), one dropped from it is refused, and the legend gives the stored unit."""
+    assert viewer_atlas.quantities(ds) == {q: unit for q, (unit, _) in atlas.QUANTITIES.items()}
+    extra = ds.assign(doubled=(ds.compliance_max.dims, 2 * ds.compliance_max.values, {"units": "m/N (twice)"}))
+    _, colours, lo, hi = viewer_atlas.atlas_points(extra, "doubled", theta=0.4)
+    _, colours_1, lo_1, hi_1 = viewer_atlas.atlas_points(extra, "compliance_max", theta=0.4)
+    np.testing.assert_allclose([lo, hi], [2 * lo_1, 2 * hi_1], rtol=1e-12)
+    np.testing.assert_allclose(colours, colours_1, rtol=0, atol=1e-12)
+    with pytest.raises(ParameterError, match="quantity must be one of the atlas's"):
+        viewer_atlas.atlas_points(ds.drop_vars("cond_J"), "cond_J")
+    with viewer.Scene(proto) as scene:
+        viewer_atlas.show_atlas(scene, extra, "doubled", theta=0.4)
+        assert scene.legend[-1].endswith("m/N (twice)")
+
+
 def test_cli_writes_the_atlas(proto, tmp_path):
     out = subprocess.run([sys.executable, "-m", "h4pin.cli", "atlas", "--x", "-0.1", "0.1", "3", "--y", "0", "0.1",
                           "2", "--z", "-0.6", "--theta", "0.2", "--out", str(tmp_path / "a.nc"), "--quiet"],

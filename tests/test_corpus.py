@@ -2,8 +2,8 @@
 """Every closed-loop robot of the corpus (tests/robots/corpus.yaml: Gepetto's example-parallel-
 robots, read as their authors' loader reads them) through h4pin.elastic.Mechanism: it loads, its
 motors are the sidecar's, it assembles by default inside its ranges, and its compliance and
-natural frequencies agree with independent routes the test builds itself from Pinocchio's frame
-Jacobians and the sidecar's own closure definitions:
+natural frequencies agree with independent routes built from Pinocchio's frame Jacobians and the
+sidecar's own closure definitions (tests/kkt.py, shared with tests/test_mechanism.py):
 
 * compliance: the KKT system ``[[K, Aᵀ], [A, 0]]`` (A: each closure's rows, 3-D as the world gap
   of the two frames' origins, 6-D as frame 2's motion relative to frame 1 in frame 1's axes; the
@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from kkt import constraint_rows, kkt_compliance, mass_matrix, spring_vector
 
 from h4pin.elastic import Mechanism
 from h4pin.elastic.engine import UnassembledError
@@ -66,32 +67,6 @@ def _assembled_in_range(mech: Mechanism) -> np.ndarray:
     return q
 
 
-def _closure_rows(model: pin.Model, d: pin.Data, cm) -> np.ndarray:
-    """The closure's Jacobian from its two frames (placements on their parent joints)."""
-    if cm.type == pin.ContactType.CONTACT_3D:
-        j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL_WORLD_ALIGNED)[:3]
-        j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL_WORLD_ALIGNED)[:3]
-        return j1 - j2
-    o1 = d.oMi[cm.joint1_id] * cm.joint1_placement
-    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
-    j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL)
-    j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL)
-    return (o1.inverse() * o2).toActionMatrix() @ j2 - j1
-
-
-def _constraints(mech: Mechanism, q: np.ndarray, locked: list[str]) -> tuple[np.ndarray, pin.Data]:
-    model = mech.model
-    d = model.createData()
-    pin.computeJointJacobians(model, d, q)
-    pin.updateFramePlacements(model, d)
-    rows = [_closure_rows(model, d, cm) for cm in mech.constraint_models]
-    eye = np.eye(model.nv)
-    for n in locked:
-        jm = model.joints[model.getJointId(n)]
-        rows.append(eye[jm.idx_v:jm.idx_v + jm.nv])
-    return np.vstack(rows), d
-
-
 @pytest.mark.parametrize("entry", CORPUS, ids=[e["name"] for e in CORPUS])
 def test_corpus_robot(entry):
     mech = _mechanism(entry)
@@ -113,26 +88,15 @@ def test_corpus_robot(entry):
     out_frame = side["closed_loop"][0][0]
     C = mech.compliance(q, springs, [out_frame])
 
-    locked = list(mech.free_flyers)
-    A, d = _constraints(mech, q, locked)
-    k = np.zeros(model.nv)
-    for name, value in springs.items():
-        jm = model.joints[model.getJointId(name)]
-        k[jm.idx_v:jm.idx_v + jm.nv] = value
+    A, d = constraint_rows(model, mech.constraint_models, q, mech.free_flyers)
+    k = spring_vector(model, springs)
     jo = pin.getFrameJacobian(model, d, model.getFrameId(out_frame), pin.LOCAL_WORLD_ALIGNED)
-    # the KKT system on the independent rows of A (a redundant closure set has dependent rows)
-    u, sv, vt = np.linalg.svd(A, full_matrices=False)
-    a = vt[sv > 1e-10 * sv[0]]
-    n_c = a.shape[0]
-    kkt = np.block([[np.diag(k), a.T], [a, np.zeros((n_c, n_c))]])
-    sol = np.linalg.solve(kkt, np.vstack([jo.T, np.zeros((n_c, 6))]))
-    want = jo @ sol[:model.nv]
+    want = kkt_compliance(A, k, jo)  # on the independent rows of A (a redundant closure set has dependent rows)
     np.testing.assert_allclose(C, want, rtol=0, atol=1e-9 * np.abs(want).max())
 
     # natural frequencies: the first four against the generalized eigenproblem on null(A)
     n = scipy_linalg.null_space(A, rcond=1e-10)  # the KKT route's rank threshold
-    mass = pin.crba(model, d, q)
-    mass = np.triu(mass) + np.triu(mass, 1).T
+    mass = mass_matrix(model, d, q)
     lam = scipy_linalg.eigvals(n.T @ np.diag(k) @ n, n.T @ mass @ n)
     lam = np.sort(lam[np.isfinite(lam)].real)
     lam = lam[lam > 0]

@@ -21,7 +21,8 @@ from h4pin.errors import H4Error, UnsupportedFeatureError
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
     pytest.skip("Pinocchio < 4 reads no closures from MJCF", allow_module_level=True)
-from test_corpus import _assembled_in_range, _closure_rows  # noqa: E402
+from kkt import closure_rows  # noqa: E402
+from test_corpus import _assembled_in_range  # noqa: E402
 
 HERE = Path(__file__).parent / "robots" / "mjcf"
 #: robot file -> (motors to give, or None for the file's actuators; output site or body frame)
@@ -80,7 +81,7 @@ def test_loads_assembles_and_agrees_with_kkt(path):
     d = model.createData()
     pin.computeJointJacobians(model, d, q)
     pin.updateFramePlacements(model, d)
-    rows = [_closure_rows(model, d, cm) for cm in mech.constraint_models]
+    rows = [closure_rows(model, d, cm) for cm in mech.constraint_models]
     qpos = np.array(mj.qpos0)
     for i in range(mj.njnt):  # the assembled state in MuJoCo's qpos, joint by joint
         jm = model.joints[model.getJointId(mjcf_reader._joint_name(mj, i))]

@@ -203,8 +203,33 @@ def test_result_summaries(h4):
     np.testing.assert_allclose(res.tool_deflection, d + np.cross(res.deflection[:, 3:6], [0.0, 0.0, -0.1]))
     total = sum(res.term_deflection.values())
     np.testing.assert_allclose(total, d, atol=1e-12 * np.abs(d).max())
-    assert 1.0 < res.f1_robot < 1e3 and 1.0 < res.f1_plate < 1e3 and res.f99 > 0
+    assert res.f99 > 0
     assert "peak |dD| [um]" in cy.report(res)
+
+
+@pytest.mark.parametrize("payload", [0.0, 0.5])
+def test_the_reduced_first_frequencies_against_the_elastic_robot(h4, payload):
+    """The cycle's reduced vibration models against the elastic robot's own (the elastic cycle's
+    ``M_s = T^T M T`` over ``diag(k)`` in spring coordinates: every body's inertia, every spring;
+    h4pin.elastic_model's modes) at each of 41 samples of the 0.5 s cycle: ``f1_robot`` (the legs
+    moving rigidly with the plate) is above it by 0.6 to 3.6 % (measured; bound 4 %), and the
+    lowest over the cycle by 1.6 % (0 kg) and 0.7 % (0.5 kg) (bound 2 %); ``f1_plate`` (the legs
+    massless) by 10.8 % and 5.1 % (bound 12 %): what docs/cycle.md states."""
+    from scipy.linalg import eigh
+
+    from h4pin.studies import elastic_cycle as ec
+
+    res = cy.run(h4, 0.5, payload, samples=40)
+    sp = ec.springs_along(h4, res.cycle, res.t, payload, motion=False)
+    elastic = np.array([1 / (2 * np.pi * np.sqrt(eigh(m, np.diag(sp.k), eigvals_only=True)[-1])) for m in sp.mass])
+    rows = cy.cycle_dynamics(h4, res.cycle, res.t, payload)
+    sub = np.ix_(cy._POSE_ROWS, cy._POSE_ROWS)
+    robot = np.array([cy._natural_frequency(np.linalg.inv(k[sub]), s.inertia_x)
+                      for k, s in zip(res.compliance, rows, strict=True)])
+    assert res.f1_robot == robot.min()
+    assert np.all(robot > elastic) and np.all(robot / elastic - 1 < 0.04)
+    assert 0 < res.f1_robot / elastic.min() - 1 < 0.02
+    assert 0 < res.f1_plate / elastic.min() - 1 < 0.12
 
 
 def test_dynamic_deflection_of_a_harmonic_load_is_the_textbook_response():

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from kkt import constraint_rows, kkt_compliance, mass_matrix, nullspace_frequencies, spring_vector
 
 import h4pin
 from h4pin import ParameterError
@@ -80,17 +81,24 @@ def test_the_h4_from_its_mjcf(h4, pose):
 
 
 def test_the_elastic_h4_is_a_mechanism(h4, pose):
-    """The H4's elastic model as a Mechanism: its compliance at D is ElasticH4's, and its modes
-    with the elastic model's masses are h4pin.modes' (Pinocchio route and compiled twin)."""
+    """The H4's elastic model as a Mechanism: its compliance at D and its modes with the elastic
+    model's masses equal the plain Pinocchio + numpy route of tests/kkt.py (the KKT system
+    ``[[K, Aᵀ], [A, 0]]`` for the compliance, the generalized eigenproblem on null(A) for every
+    frequency), A from ``getFrameJacobian`` at the closures' anchors and the locked actuators'
+    rows: none of the engine's scaling, null-space or condensation code."""
     em = h4pin.elastic_model(h4)
     mech = Mechanism.from_elastic(em)
     q = em.configuration(pose)
     C = mech.compliance(q, em.stiffness, ["D"], locked=em.locked)
-    np.testing.assert_allclose(C, em.compliance_matrix(pose)[:6, :6], rtol=0, atol=1e-12 * np.abs(C).max())
+    a, d = constraint_rows(mech.model, mech.constraint_models, q, em.locked)
+    k = spring_vector(mech.model, em.stiffness)
+    jo = pin.getFrameJacobian(mech.model, d, mech.model.getFrameId("D"), pin.LOCAL_WORLD_ALIGNED)
+    want = kkt_compliance(a, k, jo)
+    np.testing.assert_allclose(C, want, rtol=0, atol=1e-10 * np.abs(want).max())
     got = mech.modes(q, em.stiffness, locked=em.locked).frequencies
-    for method in ("pinocchio", "auto"):
-        want = h4pin.modes(h4, pose, method=method).frequencies
-        np.testing.assert_allclose(got[:len(want)], want, rtol=1e-8)
+    want = nullspace_frequencies(a, k, mass_matrix(mech.model, d, q))
+    assert len(got) == len(want) == 16
+    np.testing.assert_allclose(got, want, rtol=1e-10)
 
 
 def test_assemble_closes_the_loops_or_says_which_does_not(h4):

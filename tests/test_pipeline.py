@@ -20,9 +20,10 @@ from h4pin import ParameterError, PoseError, SingularPoseError, verdicts
 from h4pin.checks import statics
 from h4pin.description.elements import ELEMENTS, FORMS, ILLUSTRATIVE, Elements, Kind
 from h4pin.kinematics import closed_form as geometry
+from h4pin.kinematics import pinocchio as kin_pinocchio
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.stiffness import elements as statics_elements
-from h4pin.stiffness import kernel, numpy_backend, packed, pipeline
+from h4pin.stiffness import frequencies, kernel, numpy_backend, packed, pipeline
 from h4pin.stiffness.api import TERMS, compliance
 from h4pin.stiffness.matrices import from_points
 
@@ -533,15 +534,20 @@ def test_a_new_element_kind_is_one_schema_row(proto):
     """A kind the library does not define (the base mounts' vertical compliance alone: site
     ``mount``, form ``force_axial``, axis ``z``) is one :class:`Kind` row, no code: its term in the
     compiled pipeline equals the statics route's sum_i c_i b_i b_i^T, b_i the z force of leg i on
-    the base per unit load, and a second row (the tips' isotropic compliance) adds its own."""
+    the base per unit load, and a second row (the tips' isotropic compliance) adds its own. The
+    compiled natural frequencies take the same table: a point mass m at D on massless links
+    vibrates at omega^2 the eigenvalues of (m K_tt)^-1, K_tt the translational block of the
+    statics route's compliance (bare K and the two rows' terms); the rows move them by 6e-4."""
     xs = well_conditioned(proto, sample_poses(proto, 12, seed=5))
     c = np.array([1e-8, 2e-8, 0.5e-8, 3e-8])
     vertical = Kind("mount_vertical", 4, "m/N", "mount", "force_axial", "z")
     tip = Kind("tip_force", 4, "m/N", "tip", "force")
     kern = kernel.prepare(proto.geometry)
     table = kernel.element_table([(vertical, c), (tip, 1e-8)], kern.packed)
-    res = kernel.compliance_batch(kernel.Kernel.from_packed(kern.packed, table), xs, "consistent", terms=True)
+    kern_new = kernel.Kernel.from_packed(kern.packed, table)
+    res = kernel.compliance_batch(kern_new, xs, "consistent", terms=True)
     bare = kernel.compliance_batch(kern, xs, "consistent")
+    want = []
     for p, x in enumerate(xs):
         loads = statics_elements.element_loads(proto.geometry, x)
         base = loads["base"]
@@ -552,3 +558,19 @@ def test_a_new_element_kind_is_one_schema_row(proto):
         ref_tip = sum(1e-8 * base[i, :3].T @ base[i, :3] for i in range(4))
         assert np.max(np.abs(res.terms[p, 5] - ref_tip)) <= 1e-12 * scale
         np.testing.assert_allclose(res.K[p], bare.K[p] + ref + ref_tip, rtol=0, atol=1e-12 * scale)
+        want.append(bare.K[p] + ref + ref_tip)
+    mass = 2.0
+    x = kernel._readonly(np.ascontiguousarray(xs))
+    inter = np.empty((len(x), pipeline.NX))
+    run = kernel._run(kern_new, x, pipeline.CONSISTENT, kernel._empty(len(x), False, False), False, False, inter)
+    freq, counts = np.empty((len(x), frequencies._NS)), np.empty((len(x), 2), dtype=np.int64)
+    frequencies.frequencies_run(x, 0, len(x), run.q, run.status, inter, kern_new.packed, kern_new.elements,
+                                frequencies.pack_masses(proto, h4pin.Payload(mass), link_inertias=False),
+                                *kin_pinocchio._configuration_pack(proto), freq, counts,
+                                frequencies._work(frequencies._NY, frequencies._NS))
+    assert np.all(counts[:, 0] == 3)
+    for p, k in enumerate(want):
+        hand = np.sort(np.sqrt(1.0 / np.linalg.eigvalsh(mass * k[:3, :3])) / (2 * np.pi))
+        without = np.sort(np.sqrt(1.0 / np.linalg.eigvalsh(mass * bare.K[p][:3, :3])) / (2 * np.pi))
+        np.testing.assert_allclose(freq[p, :3], hand, rtol=1e-10)
+        assert np.max(np.abs(without / hand - 1)) > 1e-4  # the rows' terms are seen

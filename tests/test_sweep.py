@@ -80,6 +80,28 @@ def test_sweep_equals_the_numpy_reference(local):
         assert local["volume"][d] == pytest.approx(status_ok(params, grid).sum() * SPEC.volume.cell, rel=1e-12)
 
 
+def test_the_frequency_is_the_lowest_over_the_task_centre_and_16_corners():
+    """``Spec.frequency``'s value is what docs/cli.md says: the lowest first natural frequency
+    over the task box's centre and its 16 corners (built here from the box's centre and half
+    sizes), those the design reaches; each design loaded from its parameters (a URDF) and its
+    modes by the Pinocchio route (rtol 1e-9): one design that reaches all 17, one that misses 8."""
+    import itertools
+
+    task = sweep.Task(half=(0.2, 0.2, 0.1, 0.5))
+    spec = sweep.Spec(n_designs=8, seed=3, task=task, frequency=True, volume=sweep.VolumeGrid(counts=(2, 2, 2)))
+    rows = sweep.designs(spec)[[0, 3]]
+    res = sweep.evaluate(rows, spec)
+    poses = np.array([task.centre] + [np.add(task.centre, np.multiply(s, task.half))
+                                      for s in itertools.product((-1.0, 1.0), repeat=4)])
+    reached = []
+    for d, row in enumerate(rows):
+        f = h4pin.modes(h4pin.elastic_model(h4pin.load(sweep.params_of(row))), poses, method="pinocchio")
+        ok = f.status == 0
+        reached.append(int(ok.sum()))
+        assert res["first_frequency"][d] == pytest.approx(np.min(f.first[ok]), rel=1e-9)
+    assert reached == [9, 17]
+
+
 def test_killed_sweep_resumes_to_the_same_numbers(local, tmp_path):
     path = tmp_path / "s.zarr"
     part = sweep.run(path, SPEC, stop_after=1, progress=False)  # "killed" after one chunk

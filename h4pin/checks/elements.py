@@ -5,6 +5,10 @@ route that checks :mod:`h4pin.stiffness.elements` (unit loads on the statics).
 :class:`DeformedElementsH4` is :class:`h4pin.checks.deformed.DeformedH4` whose plate joints,
 plate beams and actuator mounts can be deformed too; :func:`element_terms_fd` moves each element
 by a small step, solves the non-linear plate and assembles ``sum c G G^T`` by virtual work.
+
+Nothing of :mod:`h4pin.stiffness.elements` is used: each spring's compliance is read from the
+:class:`~h4pin.description.elements.Elements` here, and a beam's tip compliance comes from its
+strain energy (:func:`_cantilever`), not from the closed forms it checks.
 """
 
 from __future__ import annotations
@@ -16,7 +20,29 @@ from h4pin.checks.deformed import DeformedH4
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.geometry import H4Geometry
 from h4pin.kinematics.closed_form import normal_pair
-from h4pin.stiffness.elements import BEAMS, _beam_matrix, beam_axes, out_of_plane_compliance, spring_compliances
+
+_GAUSS = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
+
+
+def _cantilever(axis: np.ndarray, length: float, section: np.ndarray) -> np.ndarray:
+    """Tip compliance (6, 6), ``[delta, phi] = C [P, M]``, of a straight beam of ``length`` along
+    the unit ``axis`` e, clamped at its root, with the section's compliance per unit length
+    ``section`` (3, 3) (curvature and twist per unit moment: ``(I - e e^T) / EI`` for bending,
+    ``e e^T / GJ`` for torsion, ``b b^T / EI`` for bending in one plane only), by Castigliano:
+    the tip load gives the moment ``m(s) = M + (L - s) e x P`` at s from the root, the strain
+    energy is ``1/2 int m^T section m ds`` and C its Hessian in [P, M] (the integrand is
+    quadratic in s: two Gauss points are exact). Axial and shear strain neglected."""
+    cross = pin.skew(np.asarray(axis, dtype=float))
+    out = np.zeros((6, 6))
+    for x in _GAUSS:
+        moment = np.hstack([(1.0 - x) * length * cross, np.eye(3)])  # m = moment @ [P, M]
+        out += 0.5 * length * moment.T @ section @ moment
+    return out
+
+
+def _flexibility(rigidity: float) -> float:
+    """1 / rigidity (0 for an infinite one: the element is rigid)."""
+    return 0.0 if np.isinf(rigidity) else 1.0 / rigidity
 
 
 class DeformedElementsH4(DeformedH4):
@@ -101,32 +127,39 @@ def element_terms_fd(g: H4Geometry, pose: np.ndarray, elements: Elements, step: 
     change of the bar length, two per bar), ``sum G C G^T`` with the (8, 6) G of a beam's tip or
     an actuator mount and its (6, 6) compliance in the same frame."""
     robot = DeformedElementsH4(g, pose)
-    comp = spring_compliances(elements)
     out = {}
     on = {n for n in ELEMENTS if elements.on(n)}
     if on & {"revolute_radial", "revolute_axial", "revolute_tilt"}:
         cols = {"revolute_radial": [], "revolute_axial": [], "revolute_tilt": []}
-        for k in range(2):
+        comp = {name: [] for name in cols}
+        for k in range(2):  # joint k: two radial springs, one axial, two tilt
             nk, vk = robot.normals[k], g.v[k]
             cols["revolute_radial"] += [robot.sensitivity("c", k, _pad(nk[:, j]), step) for j in range(2)]
             cols["revolute_axial"].append(robot.sensitivity("c", k, _pad(vk), step))
             cols["revolute_tilt"] += [robot.sensitivity("c", k, _pad(None, nk[:, j]), step) for j in range(2)]
+            for name in cols:
+                comp[name] += [getattr(elements, name)[k]] * (1 if name == "revolute_axial" else 2)
         for name, c in cols.items():
             if name in on:
                 sens = np.column_stack(c)
-                out[name] = (sens * comp[name]) @ sens.T
-    if "ball_radial" in on:
+                out[name] = (sens * np.array(comp[name])) @ sens.T
+    if "ball_radial" in on:  # per bar, its two ball joints in series along it
         gl = robot.sensitivities(step)[:, 8:]
-        out["ball_radial"] = (gl * comp["ball_radial"]) @ gl.T
-    axes = beam_axes(g)
-    for name in BEAMS:
+        out["ball_radial"] = (gl * (2.0 * np.asarray(elements.ball_radial))) @ gl.T
+    # the plate's beams: D-C_k in the central bar's frame, C_k-B_i in lateral bar k's
+    beams = {"central": ("c", np.asarray(g.C0)), "lateral": ("b", np.asarray(g.b_leg))}
+    for name in ("central_EI", "central_GJ", "lateral_EI", "lateral_GJ"):
         if name in on:
-            fam = BEAMS[name][0]
-            which = "c" if fam == "central" else "b"
+            fam, kind = name.split("_")
+            which, vectors = beams[fam]
             term = np.zeros((8, 8))
-            for index, (axis, length) in enumerate(zip(*axes[fam], strict=True)):
+            for index, vec in enumerate(vectors):
+                length = float(np.linalg.norm(vec))
+                e = vec / length
+                flex = _flexibility(getattr(elements, name)[index])
+                section = flex * (np.eye(3) - np.outer(e, e) if kind == "EI" else np.outer(e, e))
                 sens = robot.sensitivities_6d(which, index, step)
-                term += sens @ _beam_matrix(name, elements, index, axis, float(length)) @ sens.T
+                term += sens @ _cantilever(e, length, section) @ sens.T
             out[name] = term
     if on & {"base_translation", "base_rotation", "shaft_tilt"}:
         sens = [robot.sensitivities_6d("p", i, step) for i in range(4)]
@@ -138,15 +171,18 @@ def element_terms_fd(g: H4Geometry, pose: np.ndarray, elements: Elements, step: 
         if "shaft_tilt" in on:  # the forearm root turned about each normal to u_i, through P_i
             shaft = np.column_stack([robot.sensitivity("p", i, _pad(None, normal_pair(g.u[i])[:, j]), step)
                                      for i in range(4) for j in range(2)])
-            out["shaft_tilt"] = (shaft * comp["shaft_tilt"]) @ shaft.T
+            out["shaft_tilt"] = (shaft * np.repeat(elements.shaft_tilt, 2)) @ shaft.T
     if "forearm_out_EI" in on:  # the tip A_i moved and turned (world frame) at the assembled pose
         tips = robot.pts.A - robot.pts.P
         term = np.zeros((8, 8))
         for i in range(4):
             sens = robot.sensitivities_6d("a", i, step)
             length = float(np.linalg.norm(tips[i]))
-            term += sens @ out_of_plane_compliance(tips[i] / length, g.u[i], length,
-                                                   elements.forearm_out_EI[i]) @ sens.T
+            e = tips[i] / length
+            b = np.cross(e, g.u[i])  # bending out of the forearm's plane: the tip along u_i, turning about e x u_i
+            b /= np.linalg.norm(b)
+            section = _flexibility(elements.forearm_out_EI[i]) * np.outer(b, b)
+            term += sens @ _cantilever(e, length, section) @ sens.T
         out["forearm_out_EI"] = term
     return out
 

@@ -3,7 +3,9 @@
 
 Each reachable grid point (status 0) of the chosen theta is drawn at its position of D, coloured
 (viridis) by a quantity of the atlas -- by default the worst-direction compliance, the largest
-eigenvalue of K_tt of eq. 30 (Company, Pierrot, Fauroux, ICRA 2005).
+eigenvalue of K_tt of eq. 30 (Company, Pierrot, Fauroux, ICRA 2005). The quantities are those
+the atlas holds (:func:`quantities`: its data variables on the grid, with their ``units``), so an
+atlas with ``first_frequency`` or one a later release extends is drawn as it is stored.
 
     from h4pin import load
 
@@ -33,24 +35,36 @@ import xarray as xr  # noqa: E402
 from h4pin import verdicts  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
 from h4pin.io.viewer import Scene  # noqa: E402
-from h4pin.studies.atlas import QUANTITIES  # noqa: E402
+
+_GRID = {"theta", "z", "y", "x"}
+
+
+def quantities(ds: xr.Dataset) -> dict[str, str]:
+    """The quantities an atlas holds and their units: every data variable on the (theta, z, y, x)
+    grid but the verdicts (``status``), with its ``units`` attribute ("" without one)."""
+    return {str(name): str(var.attrs.get("units", "")) for name, var in ds.data_vars.items()
+            if name != "status" and set(var.dims) == _GRID}
 
 
 def atlas_points(ds: xr.Dataset, quantity: str = "compliance_max", theta: float | None = None,
                  log: bool | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Positions (3, n) in m and colours (3, n) in [0, 1] of the reachable points of one theta
     slice (the nearest to ``theta``; default the first), and the colour range (lo, hi) in the
-    quantity's SI unit. Colours are viridis of the value (of its log if ``log``; default: log for
-    the compliance and condition numbers), spread over the 1st to 99th percentile."""
-    if quantity not in QUANTITIES:
-        raise ParameterError(f"quantity must be one of {tuple(QUANTITIES)}, got {quantity!r}")
+    quantity's SI unit. Colours are viridis of the value (of its log if ``log``; default: log when
+    every value is positive and the 1st to 99th percentile span more than a decade), spread over
+    the 1st to 99th percentile. ``quantity``: one of :func:`quantities`."""
+    known = quantities(ds)
+    if quantity not in known:
+        raise ParameterError(f"quantity must be one of the atlas's {tuple(known)}, got {quantity!r}")
     sl = ds.isel(theta=0) if theta is None else ds.sel(theta=theta, method="nearest")
     z, y, x = np.meshgrid(sl.z.values, sl.y.values, sl.x.values, indexing="ij")
     ok = sl.status.values == verdicts.OK
     if not np.any(ok):
         raise ParameterError("the atlas slice has no reachable point (status 0)")
     values = sl[quantity].values[ok]
-    log = quantity != "isotropy" if log is None else log
+    if log is None:
+        lo, hi = np.percentile(values, [1, 99])
+        log = bool(np.all(values > 0) and hi > 10 * lo)
     shown = np.log(values) if log else values
     lo, hi = np.percentile(shown, [1, 99])
     t = np.clip((shown - lo) / (hi - lo), 0.0, 1.0) if hi > lo else np.full(shown.shape, 0.5)
@@ -71,7 +85,7 @@ def show_atlas(scene: Scene, ds: xr.Dataset, quantity: str = "compliance_max", t
     positions, colours, lo, hi = atlas_points(ds, quantity, theta)
     cloud = mg.PointCloud(positions.astype(np.float32), colours.astype(np.float32), size=size)
     scene.vis[path].set_object(cloud)
-    unit = QUANTITIES[quantity][0]
+    unit = quantities(ds)[quantity]
     th = float(ds.theta.values[0] if theta is None else ds.sel(theta=theta, method="nearest").theta)
     scene.legend.append(f"atlas: {quantity} at theta = {th:.2f} rad, {positions.shape[1]} reachable points, "
                         f"{lo:.3g} (dark) to {hi:.3g} (yellow) {unit}")
