@@ -378,26 +378,6 @@ class Mechanism:
         return out
 
     # ------------------------------------------------------------------ stiffness
-    def _springs(self, springs: Mapping[Any, Any]) -> dict[str, Any]:
-        if not isinstance(springs, Mapping) or not (springs or self.beam_springs):
-            raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
-        names = _names(self.model, list(springs), "springs")
-        twice = sorted({n for n in names if names.count(n) > 1})
-        if twice:
-            raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
-        return {**self.beam_springs, **dict(zip(names, springs.values(), strict=True))}
-
-    def _locked(self, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
-        if not isinstance(free_root, bool):
-            raise ParameterError(f"free_root: True or False, got {free_root!r}")
-        names = _names(self.model, locked, "locked")
-        both = sorted(set(names) & set(springs))
-        if both:
-            raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
-        if not free_root:
-            names = names + tuple(n for n in self.free_flyers if n not in names and n not in springs)
-        return names
-
     def compliance(self, q: Any, springs: Mapping[Any, Any], outputs: Sequence[Any],
                    locked: Iterable[Any] = (), *, free_root: bool = False, method: str = "auto",
                    threads: int | None = None) -> np.ndarray:
@@ -418,8 +398,8 @@ class Mechanism:
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
             TooLargeError: a batch over the memory or time limit.
         """
-        stiff = self._springs(springs)
-        lock = self._locked(locked, stiff, free_root)
+        stiff = _springs(self, springs)
+        lock = _locked(self, locked, stiff, free_root)
         outs = _outputs(self, outputs)
         method, threads = batch.check_method(method), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
@@ -441,8 +421,8 @@ class Mechanism:
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
         """
-        stiff = self._springs(springs)
-        lock = self._locked(locked, stiff, free_root)
+        stiff = _springs(self, springs)
+        lock = _locked(self, locked, stiff, free_root)
         method, threads = batch.check_method(method), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         if one:
@@ -450,6 +430,30 @@ class Mechanism:
         freq = batch.frequencies(self, Q, stiff, lock, payload, method, threads,
                                  lambda x: _modes_one(self, x, stiff, lock, payload).frequencies)
         return MechanismModes(freq, None, None)
+
+
+def _springs(mech: Mechanism, springs: Mapping[Any, Any]) -> dict[str, Any]:
+    """The checked springs of a call, the beams' included."""
+    if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
+        raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
+    names = _names(mech.model, list(springs), "springs")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
+    return {**mech.beam_springs, **dict(zip(names, springs.values(), strict=True))}
+
+
+def _locked(mech: Mechanism, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
+    """The locked joints of a call: ``locked``, and the free-flyer roots unless freed or sprung."""
+    if not isinstance(free_root, bool):
+        raise ParameterError(f"free_root: True or False, got {free_root!r}")
+    names = _names(mech.model, locked, "locked")
+    both = sorted(set(names) & set(springs))
+    if both:
+        raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
+    if not free_root:
+        names = names + tuple(n for n in mech.free_flyers if n not in names and n not in springs)
+    return names
 
 
 def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...],

@@ -116,7 +116,8 @@ def pack_masses(h4, payload: Any = None, link_inertias: bool = True) -> np.ndarr
     joint placement, axis and inertia from the robot's Pinocchio model (as its URDF gives them),
     and the payload's spatial inertia in frame D (:class:`h4pin.Payload`; zero without).
     ``link_inertias=False``: only the payload has mass."""
-    key = (bool(link_inertias), None if payload is None else id(payload))
+    # by value: an id would be reused by a new payload once the old one is freed (a stale mass model)
+    key = (bool(link_inertias), None if payload is None else np.asarray(payload.spatial(), dtype=float).tobytes())
     packs = _PACKS.setdefault(h4, {})
     if key in packs:
         return packs[key]
