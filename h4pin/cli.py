@@ -407,8 +407,8 @@ def atlas(
     for name, axis in (("--x", x), ("--y", y), ("--z-range", z_range)):
         if axis is not None and axis[2] < 1:
             fail(f"{name} LO HI N needs N >= 1, got {axis[2]}")
-    atlas_module.check_out(out, "--out")
-    check_replace(out, "--out", overwrite)  # a .zarr store: check_out's rule (only an atlas is replaced)
+    atlas_module.check_out(out, "--out", overwrite)  # a .zarr store: an h4pin atlas, or --overwrite
+    check_replace(out, "--out", overwrite)  # a .nc file
     if figures is not None:
         check_output(figures / "atlas_status.png", "--figures")
         maps = (*atlas_module.QUANTITIES, *(atlas_module.FREQUENCY if frequency else ()), "status")
@@ -422,7 +422,7 @@ def atlas(
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
     ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out,
-                            frequency=frequency)
+                            frequency=frequency, overwrite=overwrite)
     ok = ds.status == 0  # lazy (dask) for a streamed .zarr atlas: reduced chunk by chunk
     n_ok = int(ok.sum())
     typer.echo(f"{n_ok} of {ok.size} poses reachable and regular")
@@ -461,7 +461,7 @@ def sweep(
 
     figure, figure_name = renamed(figure, pareto, "--pareto")
     spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model, frequency=frequency)
-    sweep_module.check_store(out, "--out")
+    sweep_module.check_store(out, "--out", overwrite)
     if figure is not None:
         check_output(figure, figure_name, suffixes=(".png",))
         check_replace(figure, figure_name, overwrite)
@@ -474,7 +474,8 @@ def sweep(
     if workers is not None and workers < 1:
         fail(f"--workers must be >= 1 (Dask workers), got {workers}")
     warn_renamed()
-    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
+    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet,
+                           overwrite=overwrite)
     front = sweep_module.pareto(res)
     typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
                f"{res['reach_all'].sum()} reach the whole task box, {front.size} on the Pareto front")
