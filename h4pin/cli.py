@@ -470,6 +470,7 @@ def sweep(
             fail(f"--urdf-dir: folder {urdf_dir} does not exist")
         check_output(urdf_dir / "h4_sweep.urdf", "--urdf-dir")
         for old in sorted(urdf_dir.glob("h4_sweep_*.urdf")):  # the names depend on the results: all that could be
+            check_output(old, "--urdf-dir")  # a folder of that name
             check_replace(old, "--urdf-dir", overwrite)
     if workers is not None and workers < 1:
         fail(f"--workers must be >= 1 (Dask workers), got {workers}")

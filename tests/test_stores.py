@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """h4pin's zarr stores (atlas, sweep): told by their own attribute, not by a word in their
-attributes; a user's store kept unless --overwrite; one writer at a time."""
+attributes; a user's store kept unless --overwrite; one writer at a time; a folder where a sweep
+URDF goes refused in one line."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import sys
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import run_cli_in_process
 
@@ -183,3 +185,23 @@ def test_a_lock_left_by_a_killed_process_is_taken_over(tmp_path):
     files.release_lock(lock)
     assert not lock.exists()
     files.release_lock(lock)  # not held: nothing
+
+
+def test_a_folder_where_a_sweep_urdf_goes_is_one_line(tmp_path, monkeypatch, capsys):
+    """A folder named like one of the URDFs the sweep writes: the command refuses it before any
+    work (exit 2, one line, no store made); write_best refuses it before writing any file."""
+    urdfs = tmp_path / "urdfs"
+    urdfs.mkdir()
+    (urdfs / "h4_sweep_3.urdf").mkdir()
+    code, _, err = run_cli_in_process(["sweep", "--out", str(tmp_path / "s.zarr"), "--designs", "4", "--chunk", "2",
+                                       "--quiet", "--urdf-dir", str(urdfs)], monkeypatch, capsys)
+    assert code == 2, err
+    assert errors(err) == (f"error: --urdf-dir {urdfs / 'h4_sweep_3.urdf'} is a folder: give the path of the file "
+                           "to write\n")
+    assert not (tmp_path / "s.zarr").exists()
+    res = {"reach_all": np.array([True, True]), "worst": np.array([1.0, 2.0]), "volume": np.array([1.0, 3.0]),
+           "designs": sweep.designs(sweep.Spec(n_designs=2, seed=0, chunk=2))}
+    (urdfs / "h4_sweep_0.urdf").mkdir()
+    with pytest.raises(ParameterError, match="h4_sweep_0.urdf is a folder"):
+        sweep.write_best(res, urdfs, k=2)
+    assert sorted(p.name for p in urdfs.iterdir()) == ["h4_sweep_0.urdf", "h4_sweep_3.urdf"]

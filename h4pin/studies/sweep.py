@@ -557,14 +557,20 @@ def pareto(res: dict[str, np.ndarray]) -> np.ndarray:
 
 def write_best(res: dict[str, np.ndarray], folder: str | Path, k: int = 3) -> list[Path]:
     """URDF variants of up to ``k`` Pareto designs (stiffest, largest and one between):
-    ``h4_sweep_<index>.urdf`` in ``folder``, loadable by :func:`h4pin.load`."""
+    ``h4_sweep_<index>.urdf`` in ``folder``, loadable by :func:`h4pin.load`.
+
+    Raises:
+        ParameterError: no design on the front; ``folder`` missing or not writable, or a folder
+            where one of the files goes (checked for all before any is written).
+    """
     from h4pin.description.urdf import write_urdf
 
     front = pareto(res)
     if front.size == 0:
         raise ParameterError("no design reaches the whole task workspace")
     pick = front[np.unique(np.linspace(0, front.size - 1, min(k, front.size)).round().astype(int))]
-    return [write_urdf(params_of(res["designs"][d]), Path(folder) / f"h4_sweep_{d}.urdf") for d in pick]
+    paths = [check_output(Path(folder) / f"h4_sweep_{d}.urdf", "folder") for d in pick]  # all, before any is written
+    return [write_urdf(params_of(res["designs"][d]), path) for d, path in zip(pick, paths, strict=True)]
 
 
 def plot_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
