@@ -518,6 +518,10 @@ def cycle(
     if samples < 8:
         fail(f"--samples must be >= 8, got {samples}")
     limits.check_cycle_samples(samples, len(payload))
+    if elastic:  # its motion and the stop after it (sampled at the cycle's step), before the rigid cycle runs
+        from h4pin.studies.elastic_cycle import HOLD
+
+        limits.check_elastic_cycle(samples, math.ceil(HOLD / (time / samples)), len(payload))
     check_finite("--heading", (heading,))
     if figure is not None:
         check_output(figure, "--figure", suffixes=(".png",))
@@ -593,8 +597,12 @@ def modes(
         axis = np.linspace(-span / 2, span / 2, grid)
         ds = frequency.frequency_map(h4, c[0] + axis, c[1] + axis, float(x[2]), float(x[3]), load_)
         f = ds.first_frequency.values
-        typer.echo(f"first frequency over the map: {np.nanmin(f):.1f} to {np.nanmax(f):.1f} Hz "
-                   f"({int(np.isfinite(f).sum())} of {f.size} poses reachable and regular)")
+        ok = np.isfinite(f)
+        if ok.any():
+            typer.echo(f"first frequency over the map: {f[ok].min():.1f} to {f[ok].max():.1f} Hz "
+                       f"({int(ok.sum())} of {f.size} poses reachable and regular)")
+        else:
+            typer.echo(f"first frequency over the map: none of its {f.size} poses is reachable and regular")
         wrote(frequency.plot_map(ds, figure))
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -171,8 +172,10 @@ def check_size(spec: Spec) -> None:
     n = limits.count(spec.n_designs)
     # a zarr chunk is held whole in memory while it is written: --chunk larger than the sweep costs its size
     chunk = limits.count(spec.chunk)
-    need = (n + 2 * chunk) * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) \
-        * limits.COMPLIANCE_BYTES_PER_POSE
+    # the poses counted, not made (a task box of 1e12 poses would fail in making them)
+    poses = sum(limits.count(math.prod(limits.count(c) for c in counts))
+                for counts in (spec.task.counts, spec.volume.counts))
+    need = (n + 2 * chunk) * BYTES_PER_DESIGN + poses * limits.COMPLIANCE_BYTES_PER_POSE
     rate = FREQUENCY_DESIGNS_PER_S if spec.frequency else DESIGNS_PER_S
     limits.check_size(f"sweep: {n:,} designs in chunks of {chunk:,}", need, n / rate,
                       "use fewer designs (--designs) or smaller chunks (--chunk)")
