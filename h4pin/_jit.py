@@ -206,37 +206,3 @@ def start_background() -> bool:
         except OSError:
             return False
         return True
-
-
-def take_lock(path: str) -> bool:
-    """Claim the warm-up lock for this process (a dead holder's lock is taken over)."""
-    for _ in range(2):
-        try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                with open(path) as fh:
-                    pid = int(fh.read().strip() or 0)
-            except (OSError, ValueError):
-                pid = 0
-            if pid and alive(pid):
-                return False
-            try:
-                os.unlink(path)
-            except FileNotFoundError:
-                pass
-            continue
-        with os.fdopen(fd, "w") as fh:
-            fh.write(str(os.getpid()))
-        return True
-    return False
-
-
-def release_lock(path: str) -> None:
-    try:
-        with open(path) as fh:
-            if int(fh.read().strip() or 0) != os.getpid():
-                return
-        os.unlink(path)
-    except (OSError, ValueError):
-        pass

@@ -407,8 +407,8 @@ def atlas(
     for name, axis in (("--x", x), ("--y", y), ("--z-range", z_range)):
         if axis is not None and axis[2] < 1:
             fail(f"{name} LO HI N needs N >= 1, got {axis[2]}")
-    atlas_module.check_out(out, "--out")
-    check_replace(out, "--out", overwrite)  # a .zarr store: check_out's rule (only an atlas is replaced)
+    atlas_module.check_out(out, "--out", overwrite)  # a .zarr store: an h4pin atlas, or --overwrite
+    check_replace(out, "--out", overwrite)  # a .nc file
     if figures is not None:
         check_output(figures / "atlas_status.png", "--figures")
         maps = (*atlas_module.QUANTITIES, *(atlas_module.FREQUENCY if frequency else ()), "status")
@@ -422,7 +422,7 @@ def atlas(
     grid = {name: np.linspace(lo, hi, n) for name, (lo, hi, n) in (("x", x), ("y", y))}
     zs = np.linspace(*z_range[:2], z_range[2]) if z_range else (z or [float(centre_pose(h4)[2])])
     ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out,
-                            frequency=frequency)
+                            frequency=frequency, overwrite=overwrite)
     ok = ds.status == 0  # lazy (dask) for a streamed .zarr atlas: reduced chunk by chunk
     n_ok = int(ok.sum())
     typer.echo(f"{n_ok} of {ok.size} poses reachable and regular")
@@ -463,7 +463,7 @@ def sweep(
 
     figure, figure_name = renamed(figure, pareto, "--pareto")
     spec = sweep_module.Spec(n_designs=designs, seed=seed, chunk=chunk, model=model, frequency=frequency)
-    sweep_module.check_store(out, "--out")
+    sweep_module.check_store(out, "--out", overwrite)
     if figure is not None:
         check_output(figure, figure_name, suffixes=(".png",))
         check_replace(figure, figure_name, overwrite)
@@ -472,11 +472,13 @@ def sweep(
             fail(f"--urdf-dir: folder {urdf_dir} does not exist")
         check_output(urdf_dir / "h4_sweep.urdf", "--urdf-dir")
         for old in sorted(urdf_dir.glob("h4_sweep_*.urdf")):  # the names depend on the results: all that could be
+            check_output(old, "--urdf-dir")  # a folder of that name
             check_replace(old, "--urdf-dir", overwrite)
     if workers is not None and workers < 1:
         fail(f"--workers must be >= 1 (Dask workers), got {workers}")
     warn_renamed()
-    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet)
+    res = sweep_module.run(out, spec, workers=workers, scheduler=scheduler, threads=threads, progress=not quiet,
+                           overwrite=overwrite)
     front = sweep_module.pareto(res)
     typer.echo(f"{res['done'].sum()} of {len(res['done'])} chunks done; {res['valid'].sum()} valid designs, "
                f"{res['reach_all'].sum()} reach the whole task box, {front.size} on the Pareto front")
@@ -518,6 +520,10 @@ def cycle(
     if samples < 8:
         fail(f"--samples must be >= 8, got {samples}")
     limits.check_cycle_samples(samples, len(payload))
+    if elastic:  # its motion and the stop after it (sampled at the cycle's step), before the rigid cycle runs
+        from h4pin.studies.elastic_cycle import HOLD
+
+        limits.check_elastic_cycle(samples, math.ceil(HOLD / (time / samples)), len(payload))
     check_finite("--heading", (heading,))
     if figure is not None:
         check_output(figure, "--figure", suffixes=(".png",))
@@ -593,8 +599,12 @@ def modes(
         axis = np.linspace(-span / 2, span / 2, grid)
         ds = frequency.frequency_map(h4, c[0] + axis, c[1] + axis, float(x[2]), float(x[3]), load_)
         f = ds.first_frequency.values
-        typer.echo(f"first frequency over the map: {np.nanmin(f):.1f} to {np.nanmax(f):.1f} Hz "
-                   f"({int(np.isfinite(f).sum())} of {f.size} poses reachable and regular)")
+        ok = np.isfinite(f)
+        if ok.any():
+            typer.echo(f"first frequency over the map: {f[ok].min():.1f} to {f[ok].max():.1f} Hz "
+                       f"({int(ok.sum())} of {f.size} poses reachable and regular)")
+        else:
+            typer.echo(f"first frequency over the map: none of its {f.size} poses is reachable and regular")
         wrote(frequency.plot_map(ds, figure))
 
 

@@ -14,16 +14,24 @@ rest of its content, a PNG or NetCDF file a marker, see :data:`MARKER`) or the u
 is a store h4pin made for the same job (a sweep resumes its own store). Files the project ships
 (``urdf/``, ``mjcf/``) carry no marker: a copy a user edits is the user's. Something at an output
 path that is neither a file nor a folder (a FIFO, a device) is refused at once.
+
+A zarr store is h4pin's only if its attributes hold :data:`STORE_ATTR` with a format and version
+h4pin knows (:data:`STORE_FORMATS`, :func:`store_format`), written when the store is made; no
+other attribute counts (a user's store whose attributes say ``kind: atlas`` is the user's). Only
+``--overwrite`` replaces another zarr store, and no other folder is ever replaced. One process at
+a time writes a store (:func:`store_lock`, a lock file beside it: :func:`take_lock`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import json
 import os
 import re
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -31,9 +39,17 @@ from h4pin.errors import ParameterError
 
 TMP_TAG = "h4pin-tmp"
 #: What marks a binary file as h4pin's: a ``Comment`` text chunk of a PNG (:func:`save_figure`);
-#: a NetCDF (HDF5) file or a zarr store carries an ``h4pin`` attribute instead (what it holds:
-#: ``atlas``, ``sweep``). A text file carries the digest comment of :func:`write_text`.
+#: a NetCDF (HDF5) file carries an ``h4pin`` global attribute instead, a zarr store
+#: :data:`STORE_ATTR`. A text file carries the digest comment of :func:`write_text`.
 MARKER = "written by h4pin"
+#: The attribute that makes a zarr store h4pin's: ``{"format": "atlas", "version": 1}``
+#: (:func:`store_tag`), written when the store is made and checked by :func:`store_format`.
+STORE_ATTR = "h4pin_store"
+#: The store formats h4pin writes and reads, with their version. A store of another version
+#: (an older or newer layout) is not read as h4pin's: it is refused, naming its version.
+STORE_FORMATS = {"atlas": 1, "sweep": 1}
+#: Tag of the lock file beside a store being written: ``.NAME.h4pin-lock`` (:func:`store_lock`).
+LOCK_TAG = "h4pin-lock"
 #: A text output's marker: a comment holding the SHA-256 (hex) of the text without this comment;
 #: an edited file no longer matches and is the user's (:func:`written_by_h4pin`).
 _DIGEST = re.compile(r"<!-- written by h4pin, unchanged if sha256 ([0-9a-f]{64}) -->")
@@ -153,18 +169,15 @@ def written_by_h4pin(path: str | Path) -> bool:
     """Whether h4pin wrote ``path`` and it is unchanged since, told from the file itself (its
     suffix does not matter): a text file (MJCF, URDF, HTML) whose first 4 KiB hold the digest
     comment of :func:`write_text` matching the rest of its content; a PNG with :data:`MARKER` in
-    a text chunk; a NetCDF4 (HDF5) file or a zarr store with an ``h4pin`` attribute. A symbolic
-    link, or anything that is not a regular file or folder, is never h4pin's."""
+    a text chunk; a NetCDF4 (HDF5) file with an ``h4pin`` attribute; a zarr store tagged as
+    :func:`store_format` reads it. A symbolic link, or anything that is not a regular file or
+    folder, is never h4pin's."""
     path = Path(path)
     try:
         if path.is_symlink() or not path.exists():
             return False
         if path.is_dir():
-            for meta in ("zarr.json", ".zattrs"):
-                f = path / meta
-                if f.is_file() and '"h4pin"' in f.read_text(encoding="utf-8", errors="replace"):
-                    return True
-            return False
+            return store_format(path) is not None
         if not path.is_file():
             return False
         with open(path, "rb") as f:
@@ -183,6 +196,153 @@ def written_by_h4pin(path: str | Path) -> bool:
         return False
     token = m.group(0).encode()
     return _sha256(body.replace(token, b"", 1)) == m.group(1)
+
+
+def store_tag(fmt: str) -> dict[str, Any]:
+    """The value of :data:`STORE_ATTR` for a new store of format ``fmt`` (``"atlas"``, ``"sweep"``)."""
+    return {"format": fmt, "version": STORE_FORMATS[fmt]}
+
+
+def store_attributes(path: str | Path) -> dict[str, Any] | None:
+    """The attributes of the zarr group at ``path`` (zarr 3's ``zarr.json``, zarr 2's ``.zattrs``
+    beside ``.zgroup``); ``{}`` for a zarr store whose metadata cannot be read; None where there is
+    no zarr group metadata at all (not a zarr store)."""
+    path = Path(path)
+    v3, v2 = path / "zarr.json", path / ".zattrs"
+    try:
+        if v3.is_file():
+            meta = json.loads(v3.read_text(encoding="utf-8"))
+            attrs = meta.get("attributes", {}) if isinstance(meta, dict) else {}
+        elif v2.is_file():
+            attrs = json.loads(v2.read_text(encoding="utf-8"))
+        else:
+            return {} if (path / ".zgroup").is_file() else None
+    except (OSError, ValueError):  # unreadable, not UTF-8, not JSON
+        return {}
+    return attrs if isinstance(attrs, dict) else {}
+
+
+def store_format(path: str | Path) -> str | None:
+    """The format of the h4pin store at ``path`` (``"atlas"``, ``"sweep"``): its attributes hold
+    :data:`STORE_ATTR` with a format and the version of it that this h4pin writes
+    (:data:`STORE_FORMATS`); else None (a user's store, or one of another h4pin version)."""
+    tag = (store_attributes(path) or {}).get(STORE_ATTR)
+    if not isinstance(tag, dict):
+        return None
+    fmt, version = tag.get("format"), tag.get("version")
+    if isinstance(fmt, str) and type(version) is int and STORE_FORMATS.get(fmt) == version:
+        return fmt
+    return None
+
+
+def _not_ours(attrs: dict[str, Any], fmt: str) -> str:
+    """Why a zarr store with attributes ``attrs`` is not an h4pin store of format ``fmt``, for a message."""
+    tag = attrs.get(STORE_ATTR)
+    if isinstance(tag, dict) and tag.get("format") in STORE_FORMATS:
+        if tag.get("format") != fmt:
+            return f"is an h4pin {tag.get('format')} store, not {'an' if fmt[0] in 'aeiou' else 'a'} {fmt}"
+        return (f"is an h4pin {fmt} store of format version {tag.get('version')!r:.20}, which this h4pin (version "
+                f"{STORE_FORMATS[fmt]}) does not read")
+    if tag is None and attrs.get("h4pin") in STORE_FORMATS:
+        return f"was written by an older h4pin (its attributes hold no {STORE_ATTR})"
+    return "exists and h4pin did not write it"
+
+
+def check_store_folder(path: Path, fmt: str, what: str, overwrite: bool = False) -> str:
+    """What is at the store path ``path`` (after :func:`check_output`): ``"new"`` (nothing, or an
+    empty folder), ``"ours"`` (an h4pin store of format ``fmt``: :func:`store_format`) or
+    ``"foreign"`` (another zarr store, to be replaced: only with ``overwrite``).
+
+    Raises:
+        ParameterError: another zarr store without ``overwrite``, naming why it is not h4pin's
+            (no :data:`STORE_ATTR`, another format or version); a folder that is not a zarr store,
+            even with ``overwrite`` (h4pin never replaces one).
+    """
+    if not path.is_dir() or not any(path.iterdir()):
+        return "new"
+    if store_format(path) == fmt:
+        return "ours"
+    attrs = store_attributes(path)
+    if attrs is None:
+        raise ParameterError(f"{what} {path} exists and is not a zarr store: give a new path (h4pin never replaces "
+                             "or writes into another folder)")
+    if overwrite:
+        return "foreign"
+    raise ParameterError(f"{what} {path} {_not_ours(attrs, fmt)}: give another path, or --overwrite to replace it")
+
+
+def take_lock(path: str | Path) -> bool:
+    """Take the lock file ``path`` for this process (an exclusive ``flock``, released however the
+    process ends; the file holds the holder's pid) unless another process, or another caller in
+    this one, holds it. The file stays until :func:`release_lock`; one left by a killed process is
+    taken over."""
+    import fcntl
+
+    path = os.fspath(path)
+    for _ in range(8):
+        fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            return False
+        try:  # the file may have been released (unlinked) between our open and flock: lock the one there now
+            same = os.stat(path).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, str(os.getpid()).encode())
+            _held[path] = fd
+            return True
+        os.close(fd)
+    return False
+
+
+_held: dict[str, int] = {}
+
+
+def release_lock(path: str | Path) -> None:
+    """Release (and remove) a lock file :func:`take_lock` took in this process; nothing otherwise."""
+    path = os.fspath(path)
+    fd = _held.pop(path, None)
+    if fd is None:
+        return
+    try:
+        os.unlink(path)  # before the close: whoever opens the name next makes a new file
+    except OSError:
+        pass
+    os.close(fd)
+
+
+def lock_holder(path: str | Path) -> int | None:
+    """The pid written in the lock file ``path``, or None."""
+    try:
+        with open(path) as fh:
+            return int(fh.read().strip() or 0) or None
+    except (OSError, ValueError):
+        return None
+
+
+@contextlib.contextmanager
+def store_lock(path: str | Path, job: str) -> Iterator[None]:
+    """Hold the lock of the store ``path`` (``.NAME.h4pin-lock`` beside it) while writing it: a
+    second writer of the same store (another process, or another thread) is refused at once.
+
+    Raises:
+        ParameterError: another h4pin ``job`` holds it, naming the process.
+    """
+    path = Path(path)
+    lock = path.parent / f".{path.name}.{LOCK_TAG}"
+    if not take_lock(lock):
+        pid = lock_holder(lock)
+        by = f" (process {pid})" if pid else ""
+        raise ParameterError(f"another h4pin {job}{by} is writing {path} now: wait for it to finish, or give "
+                             "another path")
+    try:
+        yield
+    finally:
+        release_lock(lock)
 
 
 def unmarked(text: str) -> str:

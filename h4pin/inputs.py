@@ -17,6 +17,7 @@ that fails (to refuse, or to accept a subclass, a numpy bool, ...).
 
 from __future__ import annotations
 
+import math
 import numbers
 import reprlib
 from typing import Any
@@ -84,9 +85,12 @@ def check_real(value: Any, name: str, *, finite: bool = True, minimum: float | N
     unit = f" ({unit})" if unit else ""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ParameterError(f"{name} must be a real number{unit}, got {describe(value)}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond the floats (10**400): infinite as a float
+        x = math.inf if value > 0 else -math.inf
     if (finite and not np.isfinite(x)) or (minimum is not None and not x >= minimum):
-        rule = " and ".join(r for r, on in (("finite", finite), (f">= {minimum:g}", minimum is not None)) if on)
+        rule = " and ".join([*(["finite"] if finite else []), *([f">= {minimum:g}"] if minimum is not None else [])])
         raise ParameterError(f"{name} must be {rule}{unit}, got {describe(value)}")
     return x
 

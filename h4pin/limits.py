@@ -33,6 +33,11 @@ payload            0 to 1e3 kg          a point mass at D (the robot's plate is 
 exaggeration       0 < e <= 1e6         factor on a drawn deflection (um to m)
 scale              1e-9 to 1e9          ellipsoid scale of the viewer, mm per um/N
 cycle time         1e-3 to 1e6 s        one pick-and-place cycle (the paper's is 0.5 s)
+stroke             0 to 10 m            a cycle's stroke length or height (the paper's: 305
+                                        mm across, 25 mm up); its centre within 10 m of the base
+tool offset        abs(o) <= 10 m       a tool point from D (the elastic cycle's ``tool``)
+damping            0 to 1 s             the elastic cycle's stiffness-proportional damping
+                                        (1e-4 s: 1 % at 32.7 Hz; 1 s damps any mode to a crawl)
 stiffness          1e-6 to 1e25         kc (N.m/rad), E, G, Eb (Pa); a near-rigid stand-in
                                         (1e9 x steel, as the identification's limits use) passes
 second moment      1e-24 to 1e3 m^4     I, I0 of the forearm section (same: a stand-in passes)
@@ -63,6 +68,7 @@ from typing import Any
 import numpy as np
 
 from h4pin.errors import ParameterError
+from h4pin.inputs import short
 
 #: Share of the available memory a job may plan to use when ``H4PIN_MEMORY_LIMIT`` is not set.
 MEMORY_FRACTION = 0.8
@@ -146,7 +152,7 @@ def fmt_bytes(n: float) -> str:
     """``n`` bytes for a message: ``1.5 GiB``, ``3.0 EiB``."""
     for unit, size in (("EiB", 2**60), ("PiB", 2**50), ("TiB", 2**40), ("GiB", 2**30)):
         if n >= size:
-            return f"{n / size:.1f} {unit}"
+            return f"{n / size:.1f} {unit}" if n < 1e6 * size else f"{n / size:.3g} {unit}"
     return f"{n / 2**20:.1f} MiB"
 
 
@@ -161,6 +167,11 @@ def fmt_seconds(s: float) -> str:
     if s < 365 * 86400:
         return f"{s / 86400:.0f} days"
     return f"{s / (365 * 86400):.2g} years"
+
+
+def fmt_count(n: int) -> str:
+    """A count for a message: ``12,345``, or ``1.6e+302`` once it has more than 15 digits."""
+    return f"{n:,}" if n < 10**15 else f"{float(n):.3g}"
 
 
 def check_size(what: str, need: float, seconds: float | None = None, hint: str = "") -> None:
@@ -182,10 +193,15 @@ def check_size(what: str, need: float, seconds: float | None = None, hint: str =
                             f"({TIME_ENV}={os.environ.get(TIME_ENV, '').strip()}; raise or unset it){hint}")
 
 
+#: The largest count an estimate takes (a larger one is over any limit anyway, and stays a float).
+MAX_COUNT = 10**300
+
+
 def count(value: Any) -> int:
-    """An integer count for an estimate (0 for something that is not one: its own check refuses it)."""
+    """An integer count for an estimate, at most :data:`MAX_COUNT` (0 for something that is not
+    one: its own check refuses it)."""
     try:
-        return max(0, int(value))
+        return min(MAX_COUNT, max(0, int(value)))
     except (TypeError, ValueError, OverflowError):
         return 0
 
@@ -231,7 +247,8 @@ def check_elastic_cycle(samples: int, stop: int, payloads: int = 1) -> None:
     after it (for ``payloads`` payloads, one after the other) that does not fit in memory or
     time (:func:`check_size`)."""
     n, m = count(samples), count(stop)
-    check_size(f"elastic cycle: {n:,} samples and {m:,} of the stop", (n + m + 1) * ELASTIC_BYTES_PER_SAMPLE,
+    check_size(f"elastic cycle: {fmt_count(n)} samples and {fmt_count(m)} of the stop",
+               (n + m + 1) * ELASTIC_BYTES_PER_SAMPLE,
                payloads * (n / ELASTIC_SAMPLES_PER_S + m / ELASTIC_STOP_SAMPLES_PER_S),
                "use fewer samples or a shorter hold, or a longer cycle time (the stop is sampled at the cycle's step)")
 
@@ -257,6 +274,10 @@ RANGES: dict[str, tuple[float, float, str, str]] = {
     "exaggeration": (1e-300, 1e6, "", "a factor on the drawn deflection"),
     "scale": (1e-9, 1e9, "mm per um/N", "the ellipsoid scale"),
     "cycle_time": (1e-3, 1e6, "s", "the cycle time"),
+    "stroke": (0.0, 10.0, "m", "a cycle's stroke length or height"),
+    "stroke centre": (-10.0, 10.0, "m", "a cycle's centre from the base"),
+    "tool offset": (-10.0, 10.0, "m", "a tool point's offset from D"),
+    "damping": (0.0, 1.0, "s", "stiffness-proportional damping (1e-4 s: 1 % at 32.7 Hz)"),
 }
 #: Plausible ranges of the element data (:class:`h4pin.Elements`) by unit; 0 (a compliance) and
 #: inf (a rigidity) switch an element off and are always allowed.
@@ -282,7 +303,7 @@ def check_range(name: str, value: Any, kind: str) -> Any:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ImplausibleValueError(f"{name} must be a number{_unit(unit)}, got {value!r}") from None
+        raise ImplausibleValueError(f"{name} must be a number{_unit(unit)}, got {short(value)}") from None
     bad = ~(np.isfinite(arr) & (arr >= lo) & (arr <= hi))
     if np.any(bad):
         v = float(arr.reshape(-1)[int(np.argmax(bad.reshape(-1)))])
@@ -330,4 +351,4 @@ def warn_non_finite(what: str, bad: int, total: int, hint: str = "") -> None:
 __all__ = ["ELEMENT_RANGES", "GiB", "ImplausibleValueError", "MEMORY_ENV", "MEMORY_FRACTION",
            "NonFiniteResultWarning", "RANGES", "SPRING_RANGES", "TIME_ENV", "TooLargeError", "available_memory",
            "check_cycle_samples", "check_elastic_cycle", "check_range", "check_size", "check_springs", "fmt_bytes",
-           "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]
+           "fmt_count", "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]

@@ -96,9 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--lock", help="lock file to hold while compiling (background warm-up)")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
-    from h4pin import _jit
+    from h4pin.files import release_lock, take_lock
 
-    if args.lock and not _jit.take_lock(args.lock):
+    if args.lock and not take_lock(args.lock):
         return 0  # another process compiles this cache now
     try:
         def say(name: str, seconds: float) -> None:
@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"h4pin: compiled code cached ({total:.1f} s)", flush=True)
     finally:
         if args.lock:
-            _jit.release_lock(args.lock)
+            release_lock(args.lock)
     return 0
 
 

@@ -105,7 +105,7 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
     (tmp / "folder.zarr" / "data.bin").write_bytes(b"not an atlas")
     return [
         (["sweep", "--workers", "0", "--out", str(tmp / "s.zarr")], "--workers must be >= 1"),
-        (["sweep", "--out", str(folder)], "is not a sweep store"),
+        (["sweep", "--out", str(folder)], "is not a zarr store"),
         (["sweep", "--out", str(a_file)], "is a file"),
         (["sweep", "--out", str(tmp / "no" / "s.zarr")], "does not exist"),
         (["sweep", "--out", str(tmp / "s.zarr"), "--pareto", str(tmp / "p.txt")], "must end in .png"),
@@ -114,7 +114,7 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["atlas", "--out", str(tmp / "a.txt")], "must end in .nc or .zarr"),
         (["atlas", "--out", str(a_file.parent / "x" / "a.nc")], "does not exist"),
         (["atlas", "--out", str(folder)], "must end in .nc or .zarr"),
-        (["atlas", "--out", str(tmp / "folder.zarr")], "is not an h4pin atlas"),
+        (["atlas", "--out", str(tmp / "folder.zarr")], "is not a zarr store"),
         (["atlas", "--out", str(tmp / "a.nc"), "--figures", str(tmp / "nowhere")], "does not exist"),
         (["atlas", "--out", str(tmp / "a.nc"), "--x", "-1", "1", "100000", "--y", "-1", "1", "100000",
           "--z-range", "-1", "0", "1000"], "GiB"),
@@ -290,14 +290,18 @@ def test_what_a_kill_during_a_save_leaves_is_removed_by_the_next_save(tmp_path, 
         alive.unlink()
 
 
-def test_an_unfinished_sweep_store_names_the_command_that_cleans_it(tmp_path):
+def test_an_unfinished_sweep_store_names_the_option_that_replaces_it(tmp_path):
+    """What a kill left before stores were created whole (a bare zarr group, no h4pin_store tag)
+    is not taken for h4pin's: refused, naming --overwrite, which starts the sweep over."""
     zarr = pytest.importorskip("zarr")
     from h4pin.studies import sweep
 
     store = tmp_path / "old.zarr"
-    zarr.open_group(str(store), mode="w")  # what a kill left before stores were created whole
-    with pytest.raises(h4pin.ParameterError, match=f"rm -r {store}"):
-        sweep.run(store, sweep.Spec(n_designs=4, chunk=2), progress=False)
+    zarr.open_group(str(store), mode="w")
+    spec = sweep.Spec(n_designs=4, chunk=2)
+    with pytest.raises(h4pin.ParameterError, match="h4pin did not write it: give another path, or --overwrite"):
+        sweep.run(store, spec, progress=False)
+    assert sweep.run(store, spec, stop_after=0, progress=False, overwrite=True)["done"].tolist() == [False, False]
 
 
 @pytest.mark.parametrize(("command", "hidden"), [("atlas", "xarray"), ("sweep", "zarr")])

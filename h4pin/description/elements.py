@@ -205,7 +205,10 @@ class Elements:
     base_rotation: Any = 0.0
     forearm_out_EI: Any = np.inf
 
-    def __init__(self, **values: Any) -> None:
+    def __init__(self, *args: Any, **values: Any) -> None:
+        if args:
+            raise ParameterError(f"Elements takes its values by name (Elements(ball_radial=2e-8), kinds: "
+                                 f"{', '.join(ELEMENTS)}), got {len(args)} positional argument(s)")
         unknown = [n for n in values if n not in ELEMENTS]
         if unknown:
             raise ParameterError(f"Elements: no element kind {unknown[0]!r} (kinds: {', '.join(ELEMENTS)})")

@@ -72,22 +72,23 @@ class Payload:
 
     def __post_init__(self) -> None:
         from h4pin import limits
+        from h4pin.inputs import describe, real_array, short
 
         if isinstance(self.mass, (str, bytes)) or any(isinstance(v, (str, bytes)) for v in
                                                       np.asarray(self.com, dtype=object).reshape(-1)):
             raise ParameterError(f"payload: mass and com must be numbers (kg, m), not text, got {self!r}")
-        try:
-            mass = float(self.mass)
-            com = np.array(self.com, dtype=float)
-            inertia = np.array(self.inertia, dtype=float)
-        except (TypeError, ValueError):
-            raise ParameterError(f"payload: mass, com and inertia must be numbers, got {self!r}") from None
-        if isinstance(self.mass, bool) or not (math.isfinite(mass) and mass >= 0):
-            raise ParameterError(f"payload mass must be finite and >= 0 (kg), got {self.mass!r}")
+        mass_arr = real_array(self.mass, "payload mass", ParameterError, "a real number (kg)")
+        com = real_array(self.com, "payload com", ParameterError, "3 finite numbers (m)").copy()
+        inertia = real_array(self.inertia, "payload inertia", ParameterError, "a finite 3x3 matrix (kg.m^2)").copy()
+        if mass_arr.shape != ():
+            raise ParameterError(f"payload mass must be one number (kg), got {describe(self.mass)}")
+        mass = float(mass_arr)
+        if not (math.isfinite(mass) and mass >= 0):
+            raise ParameterError(f"payload mass must be finite and >= 0 (kg), got {short(self.mass)}")
         if com.shape != (3,) or not np.all(np.isfinite(com)):
-            raise ParameterError(f"payload com must be 3 finite numbers (m), got {self.com!r}")
+            raise ParameterError(f"payload com must be 3 finite numbers (m), got {short(self.com)}")
         if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
-            raise ParameterError(f"payload inertia must be a finite 3x3 matrix (kg.m^2), got {self.inertia!r}")
+            raise ParameterError(f"payload inertia must be a finite 3x3 matrix (kg.m^2), got {short(self.inertia)}")
         scale = max(float(np.abs(inertia).max()), 1e-300)
         if np.abs(inertia - inertia.T).max() > 1e-12 * scale:
             raise ParameterError(f"payload inertia must be symmetric, got {inertia.tolist()}")

@@ -327,10 +327,24 @@ class Solution(NamedTuple):
     detail: list[str | None]  #: a message per pose (None when ok)
 
 
+#: A pose coordinate (m) beyond which D is out of reach of any robot h4pin models: such poses are
+#: computed without numpy's overflow warnings (their squares overflow near 1e154 m), unreachable.
+FAR = 1e6
+
+
 def solve(g: H4Geometry, pose: np.ndarray, *, check: bool = True) -> Solution:
     """Inverse geometry with a verdict per pose: unreachable, outside the joint limits, bars
-    interpenetrating (``check``), or ok (status 0). Never raises on a bad pose."""
+    interpenetrating (``check``), or ok (status 0). Never raises on a bad pose, and never warns
+    on one: a pose more than :data:`FAR` from the base is unreachable, told without numpy's
+    overflow warnings."""
     x = as_poses(pose)
+    if x.size and np.abs(x[..., :3]).max() > FAR:
+        with np.errstate(over="ignore", invalid="ignore"):
+            return _solve(g, x, check)
+    return _solve(g, x, check)
+
+
+def _solve(g: H4Geometry, x: np.ndarray, check: bool) -> Solution:
     single = x.ndim == 1
     xb = x[None] if single else x
     n = len(xb)
@@ -363,14 +377,14 @@ def solve(g: H4Geometry, pose: np.ndarray, *, check: bool = True) -> Solution:
         for k in np.flatnonzero(ok & (lo | hi).any(axis=1)):
             i = int(np.argmax((lo | hi)[k]))
             status[k] = LIMITS
-            detail[k] = (f"actuator {i + 1} would be at {q[k, i]:.3f} rad, outside its joint limits "
+            detail[k] = (f"actuator {i + 1} would be at {_rad(q[k, i])} rad, outside its joint limits "
                          f"[{g.q_lo[i]:.3f}, {g.q_hi[i]:.3f}] rad")
         ok = status == OK
         for k in np.flatnonzero(ok & (olo | ohi).any(axis=1)):
             j = int(np.argmax((olo | ohi)[k]))
             status[k] = LIMITS
-            detail[k] = (f"lateral bar {j + 1} would turn by {omega[k, j]:.3f} rad on its revolute joint, outside "
-                         f"its limits [{g.omega_lo[j]:.3f}, {g.omega_hi[j]:.3f}] rad (theta = {xb[k, 3]:.3f} rad)")
+            detail[k] = (f"lateral bar {j + 1} would turn by {_rad(omega[k, j])} rad on its revolute joint, outside "
+                         f"its limits [{g.omega_lo[j]:.3f}, {g.omega_hi[j]:.3f}] rad (theta = {_rad(xb[k, 3])} rad)")
         ok = np.flatnonzero(status == OK)
         if ok.size:
             pts = points(g, PlateState(*(np.asarray(a)[ok] for a in state)))
@@ -389,7 +403,15 @@ def solve(g: H4Geometry, pose: np.ndarray, *, check: bool = True) -> Solution:
     return Solution(state, status, detail)
 
 
+def _rad(angle: float) -> str:
+    """An angle (rad) for a message: 3 decimals, or 3 digits once it is huge (theta = 1e300)."""
+    return f"{angle:.3f}" if abs(angle) < 1e6 else f"{angle:.3g}"
+
+
 def _unreachable_message(g: H4Geometry, e: np.ndarray, leg: int) -> str:
+    if not np.abs(e).max() < FAR:
+        return (f"leg {leg + 1} cannot reach B_{leg + 1}: it is {np.max(np.abs(e)):.3g} m from the actuator "
+                f"(the bars are {g.l_leg[leg] * 1e3:.1f} mm long)")
     # |B - A(q)|^2 = |e|^2 + r^2 - 2 (alpha cos q + beta sin q) spans |e|^2 + r^2 -+ 2 rho.
     rho = np.hypot(e @ g.m[leg], e @ g.um[leg])
     e2, r = float(e @ e), float(g.r[leg])

@@ -39,7 +39,7 @@ from h4pin.extras import require
 require("xarray", extra="studies", what="the atlas (h4pin.studies.atlas)")
 import xarray as xr  # noqa: E402
 
-from h4pin import limits, verdicts  # noqa: E402
+from h4pin import files, limits, verdicts  # noqa: E402
 from h4pin.description.geometry import geometry_from_params  # noqa: E402
 from h4pin.description.params import H4Params  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
@@ -215,7 +215,7 @@ def _compute(kern: Any, regions: Any, model: str, chunk: int, write: Any, bar: A
 
 def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
           chunk: int = kernel.CHUNK, progress: bool = True, out: str | Path | None = None,
-          frequency: bool = False) -> xr.Dataset:
+          frequency: bool = False, overwrite: bool = False) -> xr.Dataset:
     """The atlas over the grid ``theta x z x y x`` (1-D coordinates in m and rad).
 
     Args:
@@ -233,15 +233,17 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             saved (:func:`save`).
         frequency: Also the first natural frequency (:data:`FREQUENCY`; a robot whose
             parallelograms are exact, or an H4Params: :mod:`h4pin.stiffness.frequencies`).
+        overwrite: Replace a zarr store at ``out`` that h4pin did not write (:func:`check_out`).
 
     Returns:
         An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` (and
         :data:`FREQUENCY`) and ``status``, dims ``(theta, z, y, x)``.
     """
     if out is not None and Path(out).suffix == ".zarr":
-        return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress, frequency=frequency)
+        return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress, frequency=frequency,
+                      overwrite=overwrite)
     if out is not None:
-        check_out(out)
+        check_out(out, "out", overwrite)
     limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
@@ -261,7 +263,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
         _compute(kern, _regions(axes, block, grid, range(int(np.prod(grid)))), model, chunk, write, bar, masses)
     ds = _dataset(axes, data, model, name)
     if out is not None:
-        save(ds, out)
+        save(ds, out, overwrite)
     return ds
 
 
@@ -323,23 +325,10 @@ def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tupl
     return h.hexdigest()
 
 
-def _lock(folder: Path) -> int | None:
-    """An exclusive lock on ``folder`` (released when the process ends, however it ends), or
-    None when another process holds it."""
-    import fcntl
-
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        os.close(fd)
-        return None
-    return fd
-
-
-def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> tuple[Any, int]:
-    """The partial store of ``path`` (locked): resumed if it holds this atlas (same
-    :func:`_fingerprint`), else made anew -- in a temporary folder, moved into place whole."""
+def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> Any:
+    """The partial store of ``path`` (the caller holds :func:`h4pin.files.store_lock`): resumed if
+    it holds this atlas (same :func:`_fingerprint`), else made anew -- in a temporary folder, moved
+    into place whole."""
     import zarr
 
     partial = partial_path(path)
@@ -348,35 +337,29 @@ def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> 
             tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
             try:
                 store = tmp / "store"
-                template.to_zarr(store, mode="w", consolidated=False, compute=False)
+                tagged = template.assign_attrs({files.STORE_ATTR: files.store_tag("atlas")})
+                tagged.to_zarr(store, mode="w", consolidated=False, compute=False)
                 group = zarr.open_group(str(store), mode="a")
                 create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
                 done = create(_DONE, shape=(n_blocks,), chunks=(n_blocks,), dtype="bool", fill_value=False)
                 done.attrs["key"] = key
-                try:
-                    os.replace(store, partial)  # atomic: the partial store appears whole
-                except OSError:  # another run made it meanwhile
-                    pass
+                os.replace(store, partial)  # atomic: the partial store appears whole
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
-        fd = _lock(partial)
-        if fd is None:
-            raise ParameterError(f"out: another h4pin atlas is writing {path} (its partial store {partial} is "
-                                 "locked); wait for it or give another path")
-        group = zarr.open_group(str(partial), mode="a")
         try:
+            group = zarr.open_group(str(partial), mode="a")
             same = group[_DONE].attrs.get("key") == key
-        except KeyError:
+        except (KeyError, OSError, ValueError):  # a damaged partial store (zarr's errors are ValueErrors)
             same = False
         if same:
-            return group, fd
+            return group
         shutil.rmtree(partial, ignore_errors=True)  # another atlas's (or a damaged) partial store
-        os.close(fd)
     raise ParameterError(f"out: cannot make the partial store {partial}")
 
 
 def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
-           out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True, frequency: bool = False) -> xr.Dataset:
+           out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True, frequency: bool = False,
+           overwrite: bool = False) -> xr.Dataset:
     """The atlas of :func:`atlas`, streamed into the zarr store ``out`` with memory constant in
     the number of poses (one block of at most ``chunk`` poses, about 700 bytes a pose).
 
@@ -386,7 +369,9 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     block is in, the flags are removed and the partial store is renamed to ``out`` (replacing an
     atlas there). A killed run leaves the partial store: the next run with the same robot,
     grid, model and ``chunk`` resumes from the blocks done; any other run restarts it. ``out``
-    itself is never half-written. One run at a time per ``out`` (a lock on the partial store).
+    itself is never half-written. One run at a time per ``out`` (:func:`h4pin.files.store_lock`:
+    a second run is refused). A zarr store at ``out`` that h4pin did not write is replaced only
+    with ``overwrite`` (:func:`check_out`).
 
     Returns:
         The store at ``out``, opened lazily (:func:`xarray.open_zarr`).
@@ -394,7 +379,7 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     require("zarr", extra="studies", what="writing .zarr atlases")
     import dask.array as da
 
-    path = check_out(out, "out")
+    path = check_out(out, "out", overwrite)
     if path.suffix != ".zarr":
         raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
     limits.check_springs(source, "source")
@@ -409,38 +394,51 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     lazy = {q: da.full(shape, np.nan, chunks=block) for q in _quantities(frequency)}
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
     template = _dataset(axes, lazy, model, name)
-    clean_stale(path)
-    group, fd = _open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
+    with files.store_lock(path, "atlas"):
+        check_out(path, "out", overwrite)  # again, under the lock: another run may have written it meanwhile
+        clean_stale(path)
+        group = _open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
+        _fill(group, path, axes, block, grid, kern, model, chunk, progress, masses, frequency)
+    return _opened(path)
+
+
+def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...],
+          kern: Any, model: str, chunk: int, progress: bool, masses: Any, frequency: bool) -> None:
+    """Compute the blocks of the partial store ``group`` not flagged done, then move it to ``path``."""
+    shape = tuple(len(v) for v in axes.values())
+    done = group[_DONE]
+    flags = done[:]
+    todo = np.flatnonzero(~flags)
+    arrays = {q: group[q] for q in (*_quantities(frequency), "status")}
+
+    def write(b, region, fields):
+        t, k, ys, xs = region
+        rows = (ys.stop - ys.start, xs.stop - xs.start)
+        for q, arr in arrays.items():
+            arr[t, k, ys, xs] = fields[q].reshape(rows)
+        flags[b] = True
+        done[:] = flags  # after the block's values: a block killed half-way is computed again
+
+    with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress,
+              initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
+        _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar, masses)
+    partial = partial_path(path)
+    shutil.rmtree(partial / _DONE)
+    make_readable(partial)
+    tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
     try:
-        done = group[_DONE]
-        flags = done[:]
-        todo = np.flatnonzero(~flags)
-        arrays = {q: group[q] for q in (*_quantities(frequency), "status")}
-
-        def write(b, region, fields):
-            t, k, ys, xs = region
-            rows = (ys.stop - ys.start, xs.stop - xs.start)
-            for q, arr in arrays.items():
-                arr[t, k, ys, xs] = fields[q].reshape(rows)
-            flags[b] = True
-            done[:] = flags  # after the block's values: a block killed half-way is computed again
-
-        with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress,
-                  initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
-            _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar, masses)
-        partial = partial_path(path)
-        shutil.rmtree(partial / _DONE)
-        make_readable(partial)
-        tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
-        try:
-            if path.exists():
-                os.replace(path, tmp / "old")
-            os.replace(partial, path)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
+        if path.exists():
+            os.replace(path, tmp / "old")
+        os.replace(partial, path)
     finally:
-        os.close(fd)
-    return xr.open_zarr(path, consolidated=False)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _opened(path: Path) -> xr.Dataset:
+    """The atlas store at ``path`` opened lazily, without the store's own tag (:data:`h4pin.files.STORE_ATTR`)."""
+    ds = xr.open_zarr(path, consolidated=False)
+    ds.attrs.pop(files.STORE_ATTR, None)
+    return ds
 
 
 def _poses_in(todo: np.ndarray, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...]) -> int:
@@ -495,35 +493,36 @@ def check_memory(n: int | tuple[int, ...], *, frequency: bool = False, streamed:
                       "use fewer points or several slices" + ("" if streamed else ", or a .zarr output (streamed)"))
 
 
-def check_out(path: str | Path, what: str = "path") -> Path:
+def check_out(path: str | Path, what: str = "path", overwrite: bool = False) -> Path:
     """Refuse, before any work, an atlas output that :func:`save` could not write: not ``.nc`` or
     ``.zarr``, an unwritable folder, a folder where the ``.nc`` file should go, or an existing
-    ``.zarr`` folder that is not an atlas (it would be replaced)."""
+    ``.zarr`` folder that is not an h4pin atlas store (:func:`h4pin.files.check_store_folder`:
+    another zarr store is replaced only with ``overwrite``, any other folder never)."""
     path = check_output(path, what, folder=Path(path).suffix == ".zarr", suffixes=(".nc", ".zarr"))
-    if path.suffix == ".zarr" and path.exists() and not _is_atlas_store(path):
-        raise ParameterError(f"{what} {path} exists and is not an h4pin atlas: give a new path (an existing atlas "
-                             "is replaced)")
+    if path.suffix == ".zarr":
+        files.check_store_folder(path, "atlas", what, overwrite)
     return path
 
 
-def _is_atlas_store(path: Path) -> bool:
-    for meta in ("zarr.json", ".zattrs"):
-        f = path / meta
-        if f.is_file() and '"atlas"' in f.read_text(encoding="utf-8", errors="replace"):
-            return True
-    return False
-
-
-def save(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write an atlas atomically: ``.nc`` (NetCDF4 through h5netcdf) or ``.zarr`` (a folder).
+def save(ds: xr.Dataset, path: str | Path, overwrite: bool = False) -> Path:
+    """Write an atlas atomically: ``.nc`` (NetCDF4 through h5netcdf) or ``.zarr`` (a folder,
+    tagged as h4pin's: :data:`h4pin.files.STORE_ATTR`, written by one process at a time).
     Files are mode 0644; nothing is left half-written if the write fails, and the temporary
     folder a killed save left is removed the next time (:func:`h4pin.files.clean_stale`).
 
     Raises:
-        ParameterError: as :func:`check_out`.
+        ParameterError: as :func:`check_out`; another process writes the ``.zarr`` store now.
     """
-    path = check_out(path)
+    path = check_out(path, "path", overwrite)
     require("h5netcdf" if path.suffix == ".nc" else "zarr", extra="studies", what=f"writing {path.suffix} atlases")
+    if path.suffix == ".zarr":
+        with files.store_lock(path, "atlas"):
+            check_out(path, "path", overwrite)  # again, under the lock
+            return _save(ds, path)
+    return _save(ds, path)
+
+
+def _save(ds: xr.Dataset, path: Path) -> Path:
     clean_stale(path)
     tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
     try:
@@ -534,7 +533,7 @@ def save(ds: xr.Dataset, path: str | Path) -> Path:
             os.replace(target, path)
         else:
             target = tmp / path.name
-            ds.to_zarr(target, mode="w", consolidated=False)
+            ds.assign_attrs({files.STORE_ATTR: files.store_tag("atlas")}).to_zarr(target, mode="w", consolidated=False)
             make_readable(target)
             if path.exists():
                 os.replace(path, tmp / "old")
@@ -550,7 +549,7 @@ def open_atlas(path: str | Path) -> xr.Dataset:
     if not path.exists():
         raise FileNotFoundError(f"no atlas at {path}")
     if path.suffix == ".zarr":
-        with xr.open_zarr(path, consolidated=False) as ds:
+        with _opened(path) as ds:
             return ds.load()
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()

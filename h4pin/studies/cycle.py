@@ -53,6 +53,7 @@ import pinocchio as pin
 from h4pin import limits
 from h4pin.errors import ParameterError, PoseError
 from h4pin.files import save_figure
+from h4pin.inputs import short
 from h4pin.kinematics import closed_form as cf
 from h4pin.robot import H4
 from h4pin.stiffness.api import TERMS, compliance
@@ -140,13 +141,35 @@ class AdeptCycle:
 
 
 def _positive(name: str, value: Any, *, zero: bool = False, unit: str = "") -> float:
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise ParameterError(f"{name} must be a number{unit}, got {type(value).__name__} {short(value)}")
     try:
         v = float(value)
+    except OverflowError:  # an int beyond the floats
+        v = math.inf
     except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number{unit}, got {value!r}") from None
+        raise ParameterError(f"{name} must be a number{unit}, got {short(value)}") from None
     if not math.isfinite(v) or v < 0 or (v == 0 and not zero):
-        raise ParameterError(f"{name} must be a finite number {'>= 0' if zero else '> 0'}{unit}, got {value!r}")
+        raise ParameterError(f"{name} must be a finite number {'>= 0' if zero else '> 0'}{unit}, got {short(value)}")
     return v
+
+
+#: The shortest rise of :func:`adept_cycle` (a fraction of the half cycle): shorter ones make the
+#: accelerations overflow.
+MIN_RISE = 1e-6
+#: The most samples :func:`adept_cycle` checks the cycle's poses at.
+MAX_CHECK = 10**6
+
+
+def check_cycle_options(options: dict[str, Any]) -> None:
+    """Refuse options of :func:`adept_cycle` it does not take (passed on by the cycle studies),
+    naming them and the ones it takes."""
+    import inspect
+
+    known = [n for n in inspect.signature(adept_cycle).parameters if n not in ("h4", "period")]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise ParameterError(f"no cycle option {unknown[0]!r}; the options are {', '.join(known)}")
 
 
 def adept_cycle(h4: H4, period: float = 0.5, *, centre: np.ndarray | None = None, length: float = LENGTH,
@@ -166,21 +189,26 @@ def adept_cycle(h4: H4, period: float = 0.5, *, centre: np.ndarray | None = None
         UnreachablePoseError (and subclasses): the cycle leaves the workspace (the message gives
             the time).
     """
+    from h4pin.inputs import check_real, real_array
+
     period = _positive("period", period, unit=" (s)")
-    length = _positive("length", length, zero=True, unit=" (m)")
-    height = _positive("height", height, zero=True, unit=" (m)")
+    length = limits.check_range("length", _positive("length", length, zero=True, unit=" (m)"), "stroke")
+    height = limits.check_range("height", _positive("height", height, zero=True, unit=" (m)"), "stroke")
     rise = _positive("rise", rise)
     overlap = _positive("overlap", overlap, zero=True)
-    if rise > 0.5:
-        raise ParameterError(f"rise must be in (0, 0.5] (fraction of the half cycle), got {rise!r}")
+    if not MIN_RISE <= rise <= 0.5:
+        raise ParameterError(f"rise must be in [{MIN_RISE:g}, 0.5] (fraction of the half cycle), got {short(rise)}")
     if overlap >= 1.0:
-        raise ParameterError(f"overlap must be in [0, 1), got {overlap!r}")
-    for name, value in (("heading", heading), ("theta", theta)):
-        if not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ParameterError(f"{name} must be a finite angle (rad), got {value!r}")
-    c = cf.centre_pose(h4)[:3] if centre is None else np.asarray(centre, dtype=float)
+        raise ParameterError(f"overlap must be in [0, 1), got {short(overlap)}")
+    heading, theta = (check_real(v, name, unit="rad") for name, v in (("heading", heading), ("theta", theta)))
+    if check is None or isinstance(check, bool) or not isinstance(check, (int, np.integer)) or \
+            not 0 <= check <= MAX_CHECK:
+        raise ParameterError(f"check must be an integer in [0, {MAX_CHECK:,}] (samples; 0: none), got {short(check)}")
+    c = cf.centre_pose(h4)[:3] if centre is None else real_array(centre, "centre", ParameterError,
+                                                                  "a finite point (3,) in m")
     if c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise ParameterError(f"centre must be a finite point (3,) in m, got {centre!r}")
+        raise ParameterError(f"centre must be a finite point (3,) in m, got {short(centre)}")
+    limits.check_range("centre", c, "stroke centre")
     e = np.array([math.cos(heading), math.sin(heading), 0.0])
     start = c - 0.5 * length * e - np.array([0.0, 0.0, 0.5 * height])
     cycle = AdeptCycle(float(period), start, float(length), float(height), float(heading), float(theta),
@@ -213,7 +241,7 @@ def payload_model(h4: H4, payload: float = 0.0, at: np.ndarray | None = None,
     payload = _positive("payload", payload, zero=True, unit=" (kg)")
     o = np.zeros(3) if at is None else np.asarray(at, dtype=float)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ParameterError(f"the payload's point must be a finite offset (3,) in m, got {at!r}")
+        raise ParameterError(f"the payload's point must be a finite offset (3,) in m, got {short(at)}")
     model = pin.Model(h4.model)
     frame = model.frames[h4.index.fid_D]
     joint = frame.parentJoint
@@ -222,7 +250,7 @@ def payload_model(h4: H4, payload: float = 0.0, at: np.ndarray | None = None,
     if gravity is not None:
         g = np.asarray(gravity, dtype=float)
         if g.shape != (3,) or not np.all(np.isfinite(g)):
-            raise ParameterError(f"gravity must be a finite vector (3,) in m/s^2, got {gravity!r}")
+            raise ParameterError(f"gravity must be a finite vector (3,) in m/s^2, got {short(gravity)}")
         model.gravity = pin.Motion(g, np.zeros(3))
     return model
 
@@ -521,12 +549,13 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
         SingularPoseError: a pose of the cycle is singular.
     """
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
-        raise ParameterError(f"samples must be an integer >= 8, got {samples!r}")
+        raise ParameterError(f"samples must be an integer >= 8, got {short(samples)}")
     limits.check_cycle_samples(int(samples))
     limits.check_range("period", _positive("period", period, unit=" (s)"), "cycle_time")
     payload = limits.check_range("payload", _positive("payload", payload, zero=True, unit=" (kg)"), "payload")
     damping = _positive("damping", damping, zero=True)
     at = np.zeros(3) if payload_at is None else np.asarray(payload_at, dtype=float)
+    check_cycle_options({**cycle_options, "check": 0})
     cycle = adept_cycle(h4, period, check=0, **cycle_options)
     t = cycle.times(int(samples))
     check_reachable(h4, cycle, t)
@@ -537,7 +566,7 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     dtp = np.einsum("nij,nj->ni", res.matrix, load)
     o = at if tool is None else np.asarray(tool, dtype=float)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
+        raise ParameterError(f"tool must be a finite offset (3,) in m, got {short(tool)}")
     r = np.einsum("nab,b->na", cf.rot_z(pose[:, 3]), o)
     tool_d = dtp[:, :3] + cf.cross(dtp[:, 3:6], r)
     terms = {name: np.einsum("nij,nj->ni", res.terms[name], load)[:, :3] for name in res.terms}

@@ -377,19 +377,26 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     Raises:
         ParameterError: a bad argument. UnreachablePoseError, SingularPoseError: as the cycle.
     """
+    from h4pin.inputs import check_flag, real_array, short
+
     if not isinstance(h4, H4):
         raise ParameterError(f"h4 must be an h4pin.H4 (h4pin.load(...)), got {type(h4).__name__} {h4!r:.60}")
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
-        raise ParameterError(f"samples must be an integer >= 8, got {samples!r}")
-    damping = rigid._positive("damping", damping, zero=True, unit=" (s)")
+        raise ParameterError(f"samples must be an integer >= 8, got {short(samples)}")
+    limits.check_elastic_cycle(int(samples), 0)  # the motion alone, before its step is computed from it
+    period = limits.check_range("period", rigid._positive("period", period, unit=" (s)"), "cycle_time")
+    payload = limits.check_range("payload", rigid._positive("payload", payload, zero=True, unit=" (kg)"), "payload")
+    damping = limits.check_range("damping", rigid._positive("damping", damping, zero=True, unit=" (s)"), "damping")
     hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
-    limits.check_range("period", period, "cycle_time")
+    motion = check_flag(motion, "motion")
+    rigid.check_cycle_options(cycle_options)
     dt = float(period) / samples
     n_hold = int(math.ceil(hold / dt))
     limits.check_elastic_cycle(int(samples), n_hold)
-    o = np.zeros(3) if tool is None else np.asarray(tool, dtype=float)
+    o = np.zeros(3) if tool is None else real_array(tool, "tool", ParameterError, "a finite offset (3,) in m")
     if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ParameterError(f"tool must be a finite offset (3,) in m, got {tool!r}")
+        raise ParameterError(f"tool must be a finite offset (3,) in m, got {short(tool)}")
+    limits.check_range("tool", o, "tool offset")
     cycle = rigid.adept_cycle(h4, period, **cycle_options)
     t = np.arange(samples + 1 + n_hold) * dt
     sp = springs_along(h4, cycle, t[:samples + 1], payload, motion=motion)

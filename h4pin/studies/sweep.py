@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -33,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from h4pin import limits
+from h4pin import files, limits
 from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
@@ -174,8 +175,10 @@ def check_size(spec: Spec) -> None:
     n = limits.count(spec.n_designs)
     # a zarr chunk is held whole in memory while it is written: --chunk larger than the sweep costs its size
     chunk = limits.count(spec.chunk)
-    need = (n + 2 * chunk) * BYTES_PER_DESIGN + (len(spec.task.poses()) + len(spec.volume.poses())) \
-        * limits.COMPLIANCE_BYTES_PER_POSE
+    # the poses counted, not made (a task box of 1e12 poses would fail in making them)
+    poses = sum(limits.count(math.prod(limits.count(c) for c in counts))
+                for counts in (spec.task.counts, spec.volume.counts))
+    need = (n + 2 * chunk) * BYTES_PER_DESIGN + poses * limits.COMPLIANCE_BYTES_PER_POSE
     rate = FREQUENCY_DESIGNS_PER_S if spec.frequency else DESIGNS_PER_S
     limits.check_size(f"sweep: {n:,} designs in chunks of {chunk:,}", need, n / rate,
                       "use fewer designs (--designs) or smaller chunks (--chunk)")
@@ -313,15 +316,16 @@ _RESULTS = {"valid": ("bool", False), "reach_all": ("bool", False), "worst": ("f
             "volume": ("float64", np.nan), "task_ok": ("int32", 0), "first_frequency": ("float64", np.nan)}
 
 
-def _open_store(path: Path, spec: Spec):
-    """The store of ``spec`` at ``path``: resumed if it holds this sweep; else created in a
-    temporary folder beside it and moved into place in one rename, so that a kill at any moment
-    leaves either no store or a whole one (and a stale temporary folder, removed next time)."""
+def _open_store(path: Path, spec: Spec, overwrite: bool = False):
+    """The store of ``spec`` at ``path`` (the caller holds :func:`h4pin.files.store_lock`): resumed
+    if it holds this sweep; else created in a temporary folder beside it and moved into place in
+    one rename (replacing, with ``overwrite``, a zarr store h4pin did not write), so that a kill at
+    any moment leaves either no store or a whole one (and a stale temporary folder, removed next
+    time)."""
     import zarr
 
     clean_stale(path)
-    if path.exists() and not (path.is_dir() and not any(path.iterdir())):
-        check_store(path)
+    if check_store(path, "path", overwrite) == "ours":
         group = zarr.open_group(str(path), mode="a")
         stored = group.attrs.get("spec")
         if stored is None:
@@ -340,28 +344,27 @@ def _open_store(path: Path, spec: Spec):
         for name, (dtype, fill) in _RESULTS.items():
             create(name, shape=(spec.n_designs,), chunks=(spec.chunk,), dtype=dtype, fill_value=fill)
         create("done", shape=(spec.n_chunks,), chunks=(spec.n_chunks,), dtype="bool", fill_value=False)
-        group.attrs["h4pin"] = "sweep"
+        group.attrs[files.STORE_ATTR] = files.store_tag("sweep")
         group.attrs["variables"] = list(VARIABLES)
         group.attrs["units"] = {**{k: v[0] for k, v in VARIABLES.items()}, "worst": "m/N", "volume": "m^3",
                                 "first_frequency": "Hz"}
         group.attrs["spec"] = spec.to_json()
         make_readable(tmp / "store")
+        if path.is_dir() and any(path.iterdir()):  # a user's store, replaced with overwrite (check_store)
+            os.replace(path, tmp / "old")
         os.replace(tmp / "store", path)  # atomic: the store appears whole, spec included
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return zarr.open_group(str(path), mode="a")
 
 
-def check_store(path: str | Path, what: str = "path") -> Path:
+def check_store(path: str | Path, what: str = "path", overwrite: bool = False) -> str:
     """Refuse, before any work, a sweep output that is not writable or is an existing folder that
-    is not a sweep store (an empty folder is used; a sweep store of the same spec is resumed)."""
-    path = check_output(path, what, folder=True)
-    if path.is_dir() and any(path.iterdir()):
-        meta = [path / "zarr.json", path / ".zattrs", path / ".zgroup"]
-        if not any(m.is_file() for m in meta):
-            raise ParameterError(f"{what} {path} exists and is not a sweep store: give a new path (h4pin never writes "
-                                 "into another folder)")
-    return path
+    is not an h4pin sweep store (:func:`h4pin.files.check_store_folder`: another zarr store is
+    replaced only with ``overwrite``, any other folder never). Returns ``"new"`` (nothing there,
+    or an empty folder, which is used), ``"ours"`` (a sweep store: resumed if it holds the same
+    spec) or ``"foreign"`` (replaced)."""
+    return files.check_store_folder(check_output(path, what, folder=True), "sweep", what, overwrite)
 
 
 def check_scheduler(address: str, timeout: float = 5.0) -> None:
@@ -437,8 +440,10 @@ def check_scheduler(address: str, timeout: float = 5.0) -> None:
 
 
 def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: str | None = None,
-        threads: int | None = None, stop_after: int | None = None, progress: bool = True) -> dict[str, np.ndarray]:
+        threads: int | None = None, stop_after: int | None = None, progress: bool = True,
+        overwrite: bool = False) -> dict[str, np.ndarray]:
     """Run (or resume) the sweep ``spec`` into the zarr store ``path``; returns :func:`load`.
+    One run at a time per store (:func:`h4pin.files.store_lock`): a second one is refused.
 
     Args:
         workers: Start a Dask LocalCluster with this many single-threaded workers.
@@ -446,9 +451,8 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
         threads: numba threads per task (default: all locally, 1 on Dask workers).
         stop_after: Stop after this many chunks (to test resuming).
         progress: tqdm progress bar over the chunks.
+        overwrite: Replace a zarr store at ``path`` that h4pin did not write (:func:`check_store`).
     """
-    from tqdm import tqdm
-
     if workers is not None and scheduler is not None:
         raise ParameterError("give workers or scheduler, not both")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -459,10 +463,21 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
     require("zarr", extra="studies", what="the design sweep (h4pin.studies.sweep)")
     if workers is not None or scheduler is not None:
         require("distributed", extra="studies", what="a sweep on Dask")
-    path = check_store(path)
+    check_store(path, "path", overwrite)
+    path = Path(path)
     if scheduler is not None:
         check_scheduler(scheduler)
-    group = _open_store(path, spec)
+    with files.store_lock(path, "sweep"):
+        _run_locked(path, spec, workers, scheduler, threads, stop_after, progress, overwrite)
+    return load(path)
+
+
+def _run_locked(path: Path, spec: Spec, workers: int | None, scheduler: str | None, threads: int | None,
+                stop_after: int | None, progress: bool, overwrite: bool) -> None:
+    """:func:`run` once it holds the store's lock."""
+    from tqdm import tqdm
+
+    group = _open_store(path, spec, overwrite)
     table = group["designs"][:]  # made once, when the store was created (n_designs x 6 floats)
     done = group["done"][:]
     todo = [c for c in range(spec.n_chunks) if not done[c]]
@@ -492,7 +507,6 @@ def run(path: str | Path, spec: Spec, *, workers: int | None = None, scheduler: 
                 bar.update()
     bar.close()
     make_readable(path)
-    return load(path)
 
 
 class _client:
@@ -549,14 +563,20 @@ def pareto(res: dict[str, np.ndarray]) -> np.ndarray:
 
 def write_best(res: dict[str, np.ndarray], folder: str | Path, k: int = 3) -> list[Path]:
     """URDF variants of up to ``k`` Pareto designs (stiffest, largest and one between):
-    ``h4_sweep_<index>.urdf`` in ``folder``, loadable by :func:`h4pin.load`."""
+    ``h4_sweep_<index>.urdf`` in ``folder``, loadable by :func:`h4pin.load`.
+
+    Raises:
+        ParameterError: no design on the front; ``folder`` missing or not writable, or a folder
+            where one of the files goes (checked for all before any is written).
+    """
     from h4pin.description.urdf import write_urdf
 
     front = pareto(res)
     if front.size == 0:
         raise ParameterError("no design reaches the whole task workspace")
     pick = front[np.unique(np.linspace(0, front.size - 1, min(k, front.size)).round().astype(int))]
-    return [write_urdf(params_of(res["designs"][d]), Path(folder) / f"h4_sweep_{d}.urdf") for d in pick]
+    paths = [check_output(Path(folder) / f"h4_sweep_{d}.urdf", "folder") for d in pick]  # all, before any is written
+    return [write_urdf(params_of(res["designs"][d]), path) for d, path in zip(pick, paths, strict=True)]
 
 
 def plot_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
