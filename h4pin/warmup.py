@@ -3,8 +3,9 @@
 
 ``h4pin warmup`` (or ``python -m h4pin.warmup``, or :func:`compile_all`) compiles, in order of
 first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline's one-pose and
-batch entries, the natural frequencies, the atlas and sweep reductions, and a tiny atlas and
-sweep run as their commands run them (every signature the commands compile: a test lists them).
+batch entries, the natural frequencies, the atlas and sweep reductions, a tiny atlas and
+sweep run as their commands run them (every signature the commands compile: a test lists them),
+and the compiled path of any closed-loop mechanism (:mod:`h4pin.elastic.compiled`).
 After it, every call starts compiled.
 h4pin starts this module by itself in the background the first time a call needs code that is
 not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
@@ -42,7 +43,31 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
             ("compiled pipeline, batch", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
             ("natural frequencies", lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled")),
             ("atlas and sweep fields", _study_fields),
-            ("atlas and sweep, as their commands run", lambda: _studies(state["h4"]))]
+            ("atlas and sweep, as their commands run", lambda: _studies(state["h4"])),
+            ("any mechanism's compiled path (h4pin.elastic.Mechanism)", _mechanism)]
+
+
+def _mechanism() -> None:
+    """The generic compiled path (:mod:`h4pin.elastic.compiled`): a batch compliance and a batch of
+    natural frequencies of a three-joint closed loop built here, through :class:`Mechanism`."""
+    import pinocchio as pin
+
+    from h4pin.elastic import Mechanism
+
+    model = pin.Model()
+    placed = [(0, (0.0, 0.0, 0.0), "a"), (1, (1.0, 0.0, 0.0), "b"), (0, (2.0, 0.0, 0.0), "c")]
+    for parent, at, name in placed:
+        j = model.addJoint(parent, pin.JointModelRZ(), pin.SE3(np.eye(3), np.array(at)), name)
+        model.appendBodyToJoint(j, pin.Inertia.FromSphere(1.0, 0.1), pin.SE3.Identity())
+    tip = pin.SE3(np.eye(3), np.array([0.0, 1.0, 0.0]))
+    model.addFrame(pin.Frame("tip", 2, 0, tip, pin.FrameType.OP_FRAME))
+    loop = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, 2, tip, 3,
+                                    pin.SE3(np.eye(3), np.array([-1.0, 1.0, 0.0])))
+    mech = Mechanism(model, [loop], ["a"])
+    q = np.tile(mech.assemble(), (2, 1))
+    springs = {"a": 10.0, "b": 1.0, "c": 1.0}
+    mech.compliance(q, springs, ["tip"], method="compiled", threads=1)
+    mech.modes(q, springs, method="compiled", threads=1)
 
 
 def _study_fields() -> None:

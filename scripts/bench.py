@@ -617,19 +617,23 @@ else:
 
 
 def mechanism_rows(repeat: int) -> None:
-    """us a configuration of h4pin.elastic.Mechanism.compliance on robots of the corpus, beside the
-    plain loop a user would write (Pinocchio's Jacobians, one dense KKT solve), and with a beam on
-    every link (Mechanism.with_beams)."""
+    """us a configuration of h4pin.elastic.Mechanism on robots of the corpus: the plain loop a user
+    would write (Pinocchio's Jacobians, an SVD of the closures, one dense KKT solve), one
+    configuration a call by the Pinocchio route (Mechanism before the compiled path), and a batch
+    by the compiled path on one thread and two; the first four frequencies of the batch; and the
+    batch with a beam on every link (Mechanism.with_beams)."""
     robots = Path(__file__).resolve().parent.parent / "tests" / "robots"
-    print(f"{'robot':<22}{'nv':>5}{'plain KKT us':>14}{'Mechanism us':>14}{'ratio':>8}{'with beams us':>15}"
-          f"{'beams':>7}")
+    print("us a configuration")
+    print(f"{'robot':<20}{'nv':>4}{'plain KKT':>11}{'Pinocchio':>11}{'batch 1t':>10}{'batch 2t':>10}"
+          f"{'plain/1t':>10}{'plain/2t':>10}{'f1-4 1t':>9}{'f/C':>6}{'beams nv':>10}{'beams 1t':>10}")
     for name in ("5bar_linkage_iso3d", "robot_delta", "cassie_like", "digit_like", "digit_like_2legs", "wl16_like"):
-        nv, t_plain, t_mech, t_flex, n_beams = _mechanism_row(robots / name / "robot.urdf", repeat)
-        print(f"{name:<22}{nv:>5}{t_plain * 1e6:>14,.0f}{t_mech * 1e6:>14,.0f}{t_mech / t_plain:>8.2f}"
-              f"{t_flex * 1e6:>15,.0f}{n_beams:>7}")
+        r = _mechanism_row(robots / name / "robot.urdf", repeat)
+        print(f"{name:<20}{r['nv']:>4}{r['plain']:>11.1f}{r['pinocchio']:>11.1f}{r['one']:>10.1f}{r['two']:>10.1f}"
+              f"{r['plain'] / r['one']:>10.1f}{r['plain'] / r['two']:>10.1f}{r['freq']:>9.1f}"
+              f"{r['freq'] / r['one']:>6.1f}{r['beams_nv']:>10}{r['beams']:>10.1f}")
 
 
-def _mechanism_row(urdf: Path, repeat: int) -> tuple[int, float, float, float, int]:
+def _mechanism_row(urdf: Path, repeat: int, n: int = 512) -> dict[str, float]:
     import warnings
 
     import pinocchio as pin
@@ -674,10 +678,18 @@ def _mechanism_row(urdf: Path, repeat: int) -> tuple[int, float, float, float, i
             except H4Error:
                 pass
     flex = mech.with_beams(beams)
-    t_plain = best_of(repeat, lambda: [plain() for _ in range(20)]) / 20
-    t_mech = best_of(repeat, lambda: [mech.compliance(q, springs, [frame]) for _ in range(20)]) / 20
-    t_flex = best_of(repeat, lambda: [flex.compliance(q, springs, [frame]) for _ in range(20)]) / 20
-    return model.nv, t_plain, t_mech, t_flex, len(beams)
+    Q = np.tile(q, (n, 1))
+    mech.compliance(Q[:2], springs, [frame], method="compiled")  # compiled (or loaded) before timing
+    mech.modes(Q[:2], springs, method="compiled")
+    per = 1e6 / n
+    return {"nv": model.nv, "plain": best_of(repeat, lambda: [plain() for _ in range(20)]) * 1e6 / 20,
+            "pinocchio": best_of(repeat, lambda: [mech.compliance(q, springs, [frame], method="pinocchio")
+                                                  for _ in range(20)]) * 1e6 / 20,
+            "one": best_of(repeat, lambda: mech.compliance(Q, springs, [frame], method="compiled", threads=1)) * per,
+            "two": best_of(repeat, lambda: mech.compliance(Q, springs, [frame], method="compiled", threads=2)) * per,
+            "freq": best_of(repeat, lambda: mech.modes(Q, springs, method="compiled", threads=1)) * per,
+            "beams_nv": flex.model.nv,
+            "beams": best_of(repeat, lambda: flex.compliance(Q, springs, [frame], method="compiled", threads=1)) * per}
 
 
 def cold_run(args: list[str], mode: str) -> tuple[float, str, float]:

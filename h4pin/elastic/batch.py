@@ -54,15 +54,29 @@ def check_threads(threads: Any) -> int:
 
 def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool]:
     """``(Q (N, nq), one)``: a configuration (nq,) or a batch (N, nq) of ``mech`` (or of the
-    rigid mechanism a beam model lifts), checked; ``one`` when a single one was given."""
-    arr = np.asarray(q, dtype=object) if not isinstance(q, np.ndarray) else q
-    if np.ndim(arr) == 2:
-        n = len(arr)
-        if n == 0:
-            raise ParameterError(f"{what}: an empty batch (give at least one configuration)")
-        limits.check_size(f"{mech.name}: {n:,} configurations", n * (BYTES_PER_CONFIGURATION + 8 * mech.model.nq))
-        return np.array([mech._q(row, f"{what}[{i}]") for i, row in enumerate(arr)]), False
-    return mech._q(q, what)[None], True
+    rigid mechanism a beam model lifts), checked at once; ``one`` when a single one was given."""
+    if np.ndim(q) != 2:
+        return mech._q(q, what)[None], True
+    try:
+        arr = np.array(q, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what}: configurations, numbers of shape (N, {mech.model.nq})") from None
+    n, nq = len(arr), mech.model.nq
+    if n == 0:
+        raise ParameterError(f"{what}: an empty batch (give at least one configuration)")
+    limits.check_size(f"{mech.name}: {n:,} configurations", n * (BYTES_PER_CONFIGURATION + 8 * nq))
+    lift = mech._lift
+    if lift is not None and arr.shape[1] == lift[1]:  # a configuration of the rigid mechanism: beams at 0
+        full = np.zeros((n, nq))
+        full[:, lift[0]] = arr
+        arr = full
+    if arr.shape[1] != nq:
+        raise ParameterError(f"{what}: configurations of shape (N, {nq}), got shape {arr.shape}")
+    bad = np.argwhere(~np.isfinite(arr))
+    if bad.size:
+        i, c = bad[0]
+        raise ParameterError(f"{what}[{i}][{c}] is {arr[i, c]}: a configuration must be finite")
+    return arr, False
 
 
 def _at(exc: H4Error, where: str | None) -> H4Error:
@@ -137,8 +151,9 @@ def compliance(mech: Any, Q: np.ndarray, one: bool, stiff: dict[str, Any], outs:
     tab = _tables(mech)
     arrays = compiled.outputs(model, outs)
     rows = len(arrays.row_frame)
-    limits.check_size(f"{mech.name}: compliance of {len(Q):,} configurations",
-                      len(Q) * 8 * rows * rows * 2, len(Q) / CONFIGURATIONS_PER_S)
+    if len(Q) > 1:
+        limits.check_size(f"{mech.name}: compliance of {len(Q):,} configurations",
+                          len(Q) * 8 * rows * rows * 2, len(Q) / CONFIGURATIONS_PER_S)
     if _route(mech, method, tab):
         comp, _, status = _run(mech, tab, arrays, Q, engine.stiffness_vector(model, stiff), lock, 0, threads)
     else:

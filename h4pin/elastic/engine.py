@@ -204,15 +204,21 @@ def stiffness_vector(model: pin.Model, stiffness: Mapping[str, Any]) -> np.ndarr
     velocity coordinate of the joint; > 0 and finite). Zero on every other coordinate."""
     k = np.zeros(model.nv)
     for name, value in stiffness.items():
-        idx = _velocity_slice(model, _joint_id(model, name, "stiffness"))
+        jm = model.joints[_joint_id(model, name, "stiffness")]
+        if isinstance(value, (float, int)) and not isinstance(value, bool) and jm.nv == 1:  # the usual case
+            val = float(value)
+            if not (0 < val < math.inf):
+                raise ParameterError(f"stiffness of joint {name!r} must be finite and > 0, got {value!r}")
+            k[jm.idx_v] = val
+            continue
         try:
-            val = np.broadcast_to(np.asarray(value, dtype=float), idx.shape)
+            vals = np.broadcast_to(np.asarray(value, dtype=float), (jm.nv,))
         except (TypeError, ValueError):
-            raise ParameterError(f"stiffness of joint {name!r} must be a number or {idx.size} numbers, "
+            raise ParameterError(f"stiffness of joint {name!r} must be a number or {jm.nv} numbers, "
                                  f"got {value!r}") from None
-        if not np.all(np.isfinite(val) & (val > 0)):
+        if not np.all(np.isfinite(vals) & (vals > 0)):
             raise ParameterError(f"stiffness of joint {name!r} must be finite and > 0, got {value!r}")
-        k[idx] = val
+        k[jm.idx_v:jm.idx_v + jm.nv] = vals
     return k
 
 
