@@ -35,7 +35,8 @@ from h4pin.elastic.engine import (
 )
 from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.mechanism import Mechanism, MechanismModes
-from h4pin.elastic.modal import Modes, Payload, modes
+from h4pin.elastic.modal import Modes, modes
+from h4pin.elastic.payload import Payload
 
 
 def __getattr__(name: str):

@@ -25,6 +25,7 @@ import pinocchio as pin
 
 from h4pin import _jit, limits
 from h4pin.elastic import compiled, engine
+from h4pin.elastic.payload import Payload
 from h4pin.errors import H4Error, ParameterError
 
 METHODS = ("auto", "compiled", "pinocchio")
@@ -185,8 +186,6 @@ def coupling_rows(mech: Any, q: np.ndarray) -> np.ndarray | None:
 
 def payload_inertia(model: pin.Model, payload: Any) -> tuple[int, pin.Inertia] | None:
     """``(joint id, inertia in that joint's frame)`` of ``(frame, h4pin.elastic.Payload)``."""
-    from h4pin.elastic.modal import Payload
-
     if payload is None:
         return None
     try:

@@ -41,6 +41,7 @@ import pinocchio as pin
 from numba import njit
 
 from h4pin.errors import ParameterError
+from h4pin.lookup import frame_id
 
 REVOLUTE, UNBOUNDED, PRISMATIC, SPHERICAL, FREE_FLYER = 1, 2, 3, 4, 5
 WORLD, LOCAL, LOCAL_WORLD_ALIGNED = 0, 1, 2
@@ -150,12 +151,12 @@ class Outputs(NamedTuple):
 def outputs(model: pin.Model, resolved: list[Any]) -> Outputs:
     """Arrays of outputs already checked by :func:`h4pin.elastic.engine.output_jacobian`'s callers
     (``FrameOutput`` and ``JointOutput`` values)."""
-    from h4pin.elastic.engine import FrameOutput, frame_id
+    from h4pin.elastic.engine import FrameOutput
 
     fj, fr, fp, fref, rf, ri, rs = [], [], [], [], [], [], []
     for out in resolved:
         if isinstance(out, FrameOutput):
-            f = model.frames[frame_id(model, out.frame, out.kind)]
+            f = model.frames[frame_id(model, out.frame, out.kind, "outputs")]
             fj.append(f.parentJoint)
             fr.append(f.placement.rotation)
             fp.append(f.placement.translation)

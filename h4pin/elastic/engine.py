@@ -49,6 +49,7 @@ import pinocchio as pin
 
 from h4pin._compat import constraint_calc
 from h4pin.errors import ParameterError, SingularPoseError
+from h4pin.lookup import frame_id
 
 #: Relative size (scaled units) under which a singular value of the closure and lock rows is a
 #: redundant constraint (for example the z rows of a planar loop closed by a 3-D point contact).
@@ -59,6 +60,9 @@ SINGULAR_COND = 1e10
 #: Closure residual (relative to :func:`length_scale` for translations, rad for rotations) above
 #: which ``q`` is not assembled.
 CLOSURE_TOL = 1e-9
+#: Eigenvalue of the scaled modal mass ``Mz`` (relative to its largest) at or under which a
+#: direction is massless and condensed statically (:func:`undamped_modes`).
+MASSLESS_TOL = 1e-12
 
 
 class UnassembledError(ParameterError):
@@ -222,36 +226,13 @@ def stiffness_vector(model: pin.Model, stiffness: Mapping[str, Any]) -> np.ndarr
     return k
 
 
-_FRAME_TYPES = ("OP_FRAME", "BODY", "FIXED_JOINT", "JOINT", "SENSOR")
-
-
-def frame_id(model: pin.Model, name: str, kind: Any = None) -> int:
-    """The id of frame ``name`` (of type ``kind`` if given; when several frames share the name,
-    the first of the types OP_FRAME, BODY, FIXED_JOINT, JOINT, SENSOR that has it).
-
-    Raises:
-        ParameterError: no such frame.
-    """
-    if kind is not None:
-        if not model.existFrame(name, kind):
-            raise ParameterError(f"outputs: the model has no frame named {name!r} of type {kind}")
-        return int(model.getFrameId(name, kind))
-    if not model.existFrame(name):
-        raise ParameterError(f"outputs: the model has no frame named {name!r}")
-    for t in _FRAME_TYPES:
-        ft = getattr(pin.FrameType, t)
-        if model.existFrame(name, ft):
-            return int(model.getFrameId(name, ft))
-    return int(model.getFrameId(name))
-
-
 def output_jacobian(model: pin.Model, data: pin.Data, outputs: Sequence[Output]) -> np.ndarray:
     """Jo (m, nv): the stacked output rows at the configuration of ``data`` (needs
     ``pin.computeJointJacobians`` first)."""
     rows = []
     for out in outputs:
         if isinstance(out, FrameOutput):
-            jac = pin.getFrameJacobian(model, data, frame_id(model, out.frame, out.kind), out.reference)
+            jac = pin.getFrameJacobian(model, data, frame_id(model, out.frame, out.kind, "outputs"), out.reference)
             rows.append(jac[list(out.rows)])
         elif isinstance(out, JointOutput):
             sel = np.zeros((model.joints[_joint_id(model, out.joint, "outputs")].nv, model.nv))
@@ -319,15 +300,39 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
     qv = np.asarray(q, dtype=float)
     if qv.shape != (model.nq,) or not np.all(np.isfinite(qv)):
         raise ParameterError(f"q must be a finite configuration of shape ({model.nq},), got shape {qv.shape}")
-    lock_ids = [_joint_id(model, name, "locked") for name in locked]
+    for name in locked:
+        _joint_id(model, name, "locked")
     both = set(locked) & set(stiffness)
     if both:
         raise ParameterError(f"joint(s) {', '.join(sorted(both))} cannot be both locked and elastic")
     k = stiffness_vector(model, stiffness)
     d = model.createData() if data is None else data
-    cds = [cm.createData() for cm in constraint_models] if constraint_datas is None else constraint_datas
     pin.computeJointJacobians(model, d, qv)
+    n = admissible_basis(model, constraint_models, qv, tuple(locked), k, d, extra_rows,
+                         constraint_datas=constraint_datas, closure_tol=closure_tol, singular_cond=singular_cond)
+    elastic = np.flatnonzero(k)
+    b = n[elastic]  # elastic deflections per basis motion
+    chol = np.linalg.cholesky(b.T @ (k[elastic, None] * b))
+    x = np.linalg.solve(chol, (output_jacobian(model, d, outputs) @ n).T)
+    return x.T @ x
+
+
+def admissible_basis(model: pin.Model, constraint_models: Any, q: np.ndarray, locked: tuple[str, ...],
+                     k: np.ndarray, d: pin.Data, extra_rows: np.ndarray | None = None, *,
+                     constraint_datas: Any = None, closure_tol: float = CLOSURE_TOL,
+                     singular_cond: float = SINGULAR_COND) -> np.ndarray:
+    """N (nv, nz): a basis of the admissible motions ``dq = N z`` (z in scaled coordinates:
+    translations over the length scale), after the closure and singularity checks (module
+    docstring); ``k`` (nv,) the springs (zero where none), ``extra_rows`` (r, nv): further
+    constraints (joint couplings). ``pin.computeJointJacobians`` must have run in ``d`` at q.
+    :func:`compliance_matrix`, :meth:`h4pin.elastic.Mechanism.modes` and the elastic cycle use it.
+
+    Raises:
+        UnassembledError: a closure does not hold at q. UnrestrainedMotionError: a motion strains
+        no spring (the joints it moves).
+    """
     length = length_scale(model, d)
+    cds = [cm.createData() for cm in constraint_models] if constraint_datas is None else constraint_datas
     for cm, cd in zip(constraint_models, cds, strict=True):
         constraint_calc(cm, model, d, cd)
         trans, rot = closure_residual(cm, cd)
@@ -339,29 +344,47 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
         jc = pin.getConstraintsJacobian(model, d, constraint_models, cds) * row[:, None] * col[None, :]
     else:
         jc = np.zeros((0, model.nv))
-    lock = np.zeros((sum(model.joints[j].nv for j in lock_ids), model.nv))
-    lock_idx = np.concatenate([_velocity_slice(model, j) for j in lock_ids]) if lock_ids else np.zeros(0, int)
-    lock[np.arange(len(lock_idx)), lock_idx] = 1.0
-    a = np.vstack([jc, lock] + ([] if extra_rows is None else [np.asarray(extra_rows, float) * col[None, :]]))
-    elastic = np.flatnonzero(k)
-    frozen = np.vstack([a, np.eye(model.nv)[elastic]])
+    lock_idx = np.concatenate([_velocity_slice(model, model.getJointId(n)) for n in locked] or
+                              [np.zeros(0, dtype=int)])
+    a = np.vstack([jc, np.eye(model.nv)[lock_idx]] +
+                  ([] if extra_rows is None else [np.asarray(extra_rows, float) * col[None, :]]))
+    frozen = np.vstack([a, np.eye(model.nv)[np.flatnonzero(k)]])
     sv = np.linalg.svd(frozen, compute_uv=False)
     cond = sv[0] / sv[-1] if len(sv) >= model.nv and sv[-1] > 0 else math.inf
     if not cond < singular_cond:
         raise _unrestrained(model, frozen, cond)
-    if len(a):
-        _, s, vt = np.linalg.svd(a)
-        rank = int(np.sum(s > RANK_TOL * s[0])) if len(s) and s[0] > 0 else 0
-        basis = vt[rank:].T
-    else:
-        basis = np.eye(model.nv)
-    ks = k * col**2  # Ke in scaled coordinates dq = col * z
-    b = basis[elastic]  # elastic deflections per basis motion
-    h = b.T @ (ks[elastic, None] * b)
-    g = output_jacobian(model, d, outputs) * col[None, :] @ basis
-    chol = np.linalg.cholesky(h)
-    x = np.linalg.solve(chol, g.T)
-    return x.T @ x
+    if a.shape[0] == 0:  # no closure, nothing locked: every motion is admissible
+        return col[:, None] * np.eye(model.nv)
+    _, s, vt = np.linalg.svd(a)
+    rank = int(np.sum(s > RANK_TOL * s[0])) if s.size and s[0] > 0 else 0
+    return col[:, None] * vt[rank:].T
+
+
+def undamped_modes(n: np.ndarray, k: np.ndarray, mass: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Frequencies (Hz, ascending), mass-normalised shapes (m, nv) and the number of massless
+    directions of the undamped modes of springs ``k`` (nv,) and joint-space inertia ``mass``
+    (nv, nv) over the admissible motions ``dq = n z``: with ``Mz = n^T M n = V diag(mu) V^T``,
+    the directions of ``mu <= MASSLESS_TOL * max(mu)`` carry no mass and are condensed
+    statically (``K* = Kmm - Kms Kss^-1 Ksm``), the others solve ``K* a = lambda diag(mu) a``.
+
+    Raises:
+        ParameterError: nothing has mass.
+    """
+    kz = n.T @ (k[:, None] * n)
+    mz = n.T @ mass @ n
+    mu, v = np.linalg.eigh(0.5 * (mz + mz.T))
+    if not mu[-1] > 0:
+        raise ParameterError("nothing has mass: give a payload of mass > 0, or keep link_inertias=True")
+    heavy = mu > MASSLESS_TOL * mu[-1]
+    vm, vs, mum = v[:, heavy], v[:, ~heavy], mu[heavy]
+    kmm, kms, kss = vm.T @ kz @ vm, vm.T @ kz @ vs, vs.T @ kz @ vs
+    follow = -np.linalg.solve(kss, kms.T) if vs.shape[1] else np.zeros((0, len(mum)))
+    kstar = kmm + kms @ follow
+    root = np.sqrt(mum)
+    lam, y = np.linalg.eigh(kstar / root[:, None] / root[None, :])
+    amp = y / root[:, None]
+    shapes_q = (n @ (vm @ amp + vs @ (follow @ amp))).T
+    return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi), shapes_q, int(np.count_nonzero(~heavy))
 
 
 def compliance(*args: Any, **kwargs: Any) -> np.ndarray:

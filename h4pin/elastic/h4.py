@@ -42,6 +42,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
+import weakref
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
@@ -133,6 +134,10 @@ class ElasticH4:
                       "h4pin.compliance returns a Compliance); the old name goes in the next release",
                       DeprecationWarning, stacklevel=2)
         return self.compliance_matrix(pose, data)
+
+    def mass_model(self, link_inertias: bool = True) -> pin.Model:
+        """The model with the inertias of its natural modes (:func:`mass_model`)."""
+        return mass_model(self, link_inertias)
 
     @property
     def elastic_joints(self) -> tuple[str, ...]:
@@ -255,4 +260,37 @@ def elastic_model(h4) -> ElasticH4:
                      q_index)
 
 
-__all__ = ["ElasticH4", "elastic_model"]
+
+_MASS_MODELS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def mass_model(em: ElasticH4, link_inertias: bool = True) -> pin.Model:
+    """The elastic model with the inertias its natural modes use (:func:`h4pin.elastic.modal.modes`;
+    a cached copy; never change it).
+
+    ``link_inertias=True``: the URDF's, with each locked actuator's body moved onto its
+    ``<actuator>_elastic`` joint (the forearm turns with the actuator's spring). ``False``: every
+    link massless (only a payload has mass).
+    """
+    models = _MASS_MODELS.setdefault(em, {})
+    if link_inertias not in models:
+        m = pin.Model(em.model)
+        for j in range(1, m.njoints):
+            if not link_inertias:
+                m.inertias[j] = pin.Inertia.Zero()
+        if link_inertias:
+            for name in em.locked:
+                spring = f"{name}_elastic"
+                if name in em.stiffness or not m.existJointName(spring):
+                    continue
+                j, je = m.getJointId(name), m.getJointId(spring)
+                if m.parents[je] != j:
+                    continue
+                # at the assembled configuration the virtual joint reads 0: jMje = jointPlacements[je]
+                m.inertias[je] = m.inertias[je] + m.jointPlacements[je].actInv(m.inertias[j])
+                m.inertias[j] = pin.Inertia.Zero()
+        models[link_inertias] = m
+    return models[link_inertias]
+
+
+__all__ = ["ElasticH4", "elastic_model", "mass_model"]

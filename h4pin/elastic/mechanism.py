@@ -36,10 +36,16 @@ import pinocchio as pin
 from h4pin._compat import constraint_calc
 from h4pin.elastic import batch, engine
 from h4pin.elastic.couplings import JointCoupling
-from h4pin.elastic.engine import FrameOutput, JointOutput, UnassembledError
-from h4pin.elastic.modal import MASSLESS_TOL, admissible_basis, undamped_modes
+from h4pin.elastic.engine import (
+    MASSLESS_TOL,
+    FrameOutput,
+    JointOutput,
+    UnassembledError,
+    admissible_basis,
+    undamped_modes,
+)
 from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
-from h4pin.kinematics.pinocchio import finite_configuration, model_configuration
+from h4pin.lookup import finite_configuration, model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
 ASSEMBLY_TOL = 1e-10
@@ -246,13 +252,11 @@ class Mechanism:
         """An elastic H4 (:func:`h4pin.elastic.elastic_model`) as a mechanism: its tree, closures
         and four actuators, with the inertias :func:`h4pin.modes` uses (each forearm on its
         actuator's spring): ``compliance(q, em.stiffness, ["D"], locked=em.locked)`` and
-        :meth:`modes` give the elastic model's numbers through the generic calls."""
-        from h4pin.elastic.h4 import ElasticH4
-        from h4pin.elastic.modal import mass_model
-
-        if not isinstance(em, ElasticH4):
+        :meth:`modes` give the elastic model's numbers through the generic calls. (Nothing of
+        the H4 is imported here: ``em`` gives its own mass model.)"""
+        if not all(hasattr(em, a) for a in ("mass_model", "constraint_models", "locked", "stiffness")):
             raise ParameterError(f"em: an h4pin.elastic.ElasticH4 (h4pin.elastic_model(h4)), got {type(em).__name__}")
-        return cls(mass_model(em), em.constraint_models, em.locked, name="elastic H4")
+        return cls(em.mass_model(), em.constraint_models, em.locked, name="elastic H4")
 
     @classmethod
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:

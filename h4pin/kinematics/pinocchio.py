@@ -30,6 +30,7 @@ from h4pin.errors import ParameterError, SingularPoseError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics.closed_form import PlateState, Points
+from h4pin.lookup import finite_configuration, frame_id, model_configuration  # noqa: F401  (re-exported)
 from h4pin.verdicts import CLOSURE_SINGULAR_COND, raise_for_status
 
 _PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -145,42 +146,9 @@ def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None, st: PlateStat
     return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
 
 
-def frame_id(model: pin.Model, frame: str | int) -> int:
-    """The id of ``frame`` (a name or an id) in ``model``, or a :class:`ParameterError` naming it."""
-    if isinstance(frame, str):
-        if not model.existFrame(frame):
-            raise ParameterError(f"frame: no frame {frame!r} in the model")
-        return model.getFrameId(frame)
-    fid = int(frame)
-    if not 0 <= fid < model.nframes:
-        raise ParameterError(f"frame: id {fid} out of range (the model has {model.nframes} frames)")
-    return fid
-
-
 def as_configuration(h4, q: Any) -> np.ndarray:
     """``q`` as a finite configuration (nq,) of the robot's model, or a :class:`ParameterError`."""
     return model_configuration(h4.model, q)
-
-
-def model_configuration(model: pin.Model, q: Any, what: str = "q") -> np.ndarray:
-    """``q`` as a finite configuration (nq,) of ``model`` (a copy), or a :class:`ParameterError`
-    naming ``what``."""
-    return finite_configuration(q, model.nq, what)
-
-
-def finite_configuration(q: Any, nq: int, what: str = "q") -> np.ndarray:
-    """``q`` as a finite float vector (nq,) (a copy), or a :class:`ParameterError` naming
-    ``what``: the shape it has, or the first coordinate that is not finite."""
-    try:
-        qv = np.array(q, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a configuration of {nq} numbers, got {q!r}") from None
-    if qv.shape != (nq,):
-        raise ParameterError(f"{what} must be a configuration of shape ({nq},), got shape {qv.shape}")
-    bad = np.flatnonzero(~np.isfinite(qv))
-    if bad.size:
-        raise ParameterError(f"{what}[{bad[0]}] is {qv[bad[0]]}: a configuration must be finite")
-    return qv
 
 
 def closure_residuals(h4, q: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
