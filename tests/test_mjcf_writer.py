@@ -189,3 +189,24 @@ def test_joints_mujoco_cannot_hold_are_refused_by_name():
         mw.spec(mech, {"ball": [1.0, 2.0, 3.0]}, pin.neutral(model))
     with pytest.raises(UnsupportedFeatureError, match="'plane'.*no MuJoCo counterpart"):
         mw.spec(mech, {"ball": 1.0}, pin.neutral(model))
+
+
+def test_cli_exports_any_robot(tmp_path, monkeypatch, capsys):
+    """``h4pin export --robot URDF --elastic --spring J=K --site FRAME``: the file holds those
+    springs (the motors without one locked); a bad spring is one line and exit 2, nothing written."""
+    from conftest import run_cli_in_process
+
+    target = tmp_path / "delta.xml"
+    args = ["export", "--robot", str(ROBOTS / "robot_delta" / "robot.urdf"), "--elastic", "--out", str(target)]
+    code, out, err = run_cli_in_process([*args, "--spring", "mot1_rod1=2000", "--spring", "free1_rod1=50",
+                                         "--site", "eff", "--timestep", "1e-5"], monkeypatch, capsys)
+    assert code == 0 and out == f"wrote {target}\n", err
+    m = mujoco.MjModel.from_xml_path(str(target))
+    assert {m.joint(i).name: m.jnt_stiffness[i] for i in range(m.njnt) if m.jnt_stiffness[i]} == {
+        "mot1_rod1": 2000.0, "free1_rod1": 50.0}
+    assert m.nu == 1 and m.site("eff").id >= 0 and m.opt.timestep == 1e-5
+    assert "mot1_rod2" not in {m.joint(i).name for i in range(m.njnt)}  # locked: no spring
+    code, _, err = run_cli_in_process([*args[:-1], str(tmp_path / "bad.xml"), "--spring", "elbow=1"],
+                                      monkeypatch, capsys)
+    assert code == 2 and err.startswith("error: springs: no joint 'elbow'") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["delta.xml"]
