@@ -165,6 +165,8 @@ SLOW_IDS = frozenset({
     'tests/test_mjcf_elastic.py::test_static_deflection_with_every_element_equals_the_compliance[centre]',
     'tests/test_mjcf_elastic.py::test_static_deflection_with_every_element_equals_the_compliance[off-centre]',
     'tests/test_mjcf_elastic.py::test_text_round_trip_and_cli',
+    'tests/test_mjcf_writer.py::test_static_displacement_equals_the_compliance[5bar_linkage_iso3d]',
+    'tests/test_mjcf_writer.py::test_static_displacement_equals_the_compliance[5bar_with_beams]',
     'tests/test_packaging.py::test_scripts_write_world_readable_files',
     'tests/test_pipeline.py::test_bar_interpenetration_status',
     'tests/test_pipeline.py::test_compiled_code_is_cached',

@@ -198,9 +198,10 @@ def test_a_slow_cycle_is_quasi_static_and_a_fast_one_is_not(h4):
 
 def _mujoco_elastic():
     mujoco = pytest.importorskip("mujoco")
+    from h4pin.elastic.mjcf_writer import version
     from h4pin.io import mjcf
 
-    if mjcf._version(mujoco.__version__) < mjcf._version(mjcf.MIN_MUJOCO_ELASTIC):
+    if version(mujoco.__version__) < version(mjcf.MIN_MUJOCO_ELASTIC):
         pytest.skip(f"the elastic export needs MuJoCo >= {mjcf.MIN_MUJOCO_ELASTIC}")
 
 

@@ -22,6 +22,7 @@ import pinocchio as pin
 import pytest
 
 import h4pin
+from h4pin.elastic.mjcf_writer import version
 from h4pin.errors import ParameterError
 from h4pin.files import unmarked
 from h4pin.io import mjcf
@@ -45,7 +46,7 @@ MUJOCO_SOLREF = (0.02, 1.0)
 MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 
 
-OLD = mjcf._version(mujoco.__version__) < mjcf._version(mjcf.MIN_MUJOCO_ELASTIC)
+OLD = version(mujoco.__version__) < version(mjcf.MIN_MUJOCO_ELASTIC)
 #: The tests that run on a MuJoCo older than the elastic export's bound (its refusal).
 REFUSALS = ("test_older_mujoco_is_refused_by_name", "test_this_mujoco_refuses_when_too_old")
 

@@ -305,6 +305,13 @@ class Mechanism:
         """
         return _with_beams(self, beams)
 
+    def to_mjcf(self, path: str | Path, springs: Mapping[Any, Any], q: Any = None, **options: Any) -> Path:
+        """Write an elastic MuJoCo model, the springs as joint stiffness at rest at q (default
+        :meth:`assemble`): :func:`h4pin.elastic.mjcf_writer.write` (options, file, errors)."""
+        from h4pin.elastic import mjcf_writer
+
+        return mjcf_writer.write(self, path, springs, q, **options)
+
     # ------------------------------------------------------------------ geometry
     def _q(self, q: Any, what: str = "q") -> np.ndarray:
         lift = self._lift

@@ -51,14 +51,10 @@ The lowest MuJoCo this works with is :data:`MIN_MUJOCO` (the first whose ``MjSpe
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
 import dataclasses
 import os
 import re
-import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -67,6 +63,25 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import limits
+from h4pin.elastic.mjcf_writer import (
+    ARMATURE_STEPS,
+    CHAIN_MASS,
+    DAMPING,
+    ELASTIC_SOLIMP,
+    ELASTIC_SOLREF,
+    ELASTIC_TIMESTEP,
+    KEYFRAME,
+    MIN_MUJOCO_ELASTIC,
+    require_mujoco,
+    set_spring,
+)
+from h4pin.elastic.mjcf_writer import angle as _angle
+from h4pin.elastic.mjcf_writer import floats as _floats
+from h4pin.elastic.mjcf_writer import full_precision as _full_precision
+from h4pin.elastic.mjcf_writer import is_free as _is_free
+from h4pin.elastic.mjcf_writer import is_revolute as _is_revolute
+from h4pin.elastic.mjcf_writer import motion as _motion
+from h4pin.elastic.mjcf_writer import quaternion as _quat
 from h4pin.errors import ParameterError
 from h4pin.files import write_text
 
@@ -75,30 +90,10 @@ TIMESTEP = 1e-4
 #: Constraint softness of the closures: solref (time constant s, damping ratio) and solimp.
 SOLREF = (0.0005, 1.0)
 SOLIMP = (0.999, 0.9999, 0.001, 0.5, 2.0)
-#: The elastic export (:func:`elastic_spec`): time step (s), and the closures' solref and solimp.
-ELASTIC_TIMESTEP = 5e-5
-ELASTIC_SOLREF = (1e-4, 1.0)
-ELASTIC_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-#: Stiffness-proportional damping of the elastic joints (s): damping = DAMPING * stiffness, so a
-#: mode of frequency f has the damping ratio pi f DAMPING (1.0 % at the prototype's first, 32.7 Hz).
-DAMPING = 1e-4
-#: Mass (kg) and principal inertias (kg.m^2) of the body of a virtual joint: next to nothing,
-#: but MuJoCo refuses a body that moves on joints with no mass and inertia of its own.
-CHAIN_MASS = (1e-6, 1e-12)
-#: A virtual joint that moves no mass gets the armature ``k (ARMATURE_STEPS * timestep)^2`` (kg.m^2 or
-#: kg; k its stiffness): alone on its spring it would swing at ``1 / (ARMATURE_STEPS * timestep)``
-#: rad/s, slow enough for MuJoCo's explicit springs (mass scaling; docs/mujoco.md).
-ARMATURE_STEPS = 2.0
-#: Name of the keyframe (Pinocchio's reference configuration ``q0``).
-KEYFRAME = "q0"
 #: Name of the camera looking at the robot.
 CAMERA = "overview"
 #: Lowest MuJoCo version :func:`spec` works with (``pyproject.toml``'s ``mujoco`` extra; tested in CI).
 MIN_MUJOCO = "3.2.4"
-#: Lowest MuJoCo version :func:`elastic_spec` works with (tested in CI): 3.2.4's ``MjSpec.compile``
-#: steps the model at its reference configuration, where the elastic file's loops are open
-#: (its actuators are locked at a pose), and refuses it as unstable.
-MIN_MUJOCO_ELASTIC = "3.2.5"
 #: Suffixes of the three slide joints that carry a floating joint's translation.
 SLIDES = ("_x", "_y", "_z")
 _MARGIN = 0.05  # m, floor below the lowest reachable point
@@ -125,25 +120,9 @@ def mjcf_path(variant: str) -> Path:
     return mjcf_dir() / f"h4_{variant}.xml"
 
 
-def _version(text: str) -> tuple[int, ...]:
-    return tuple(int(part) for part in re.findall(r"\d+", text)[:3])
-
-
 def _mujoco(least: str = MIN_MUJOCO, what: str = "the MuJoCo export (h4pin.io.mjcf)") -> Any:
-    """The ``mujoco`` module, at least ``least`` (:data:`MIN_MUJOCO`).
-
-    Raises:
-        MissingExtraError: MuJoCo is not installed, or older than ``least``.
-    """
-    from h4pin.extras import MissingExtraError, require
-
-    require("mujoco", extra="mujoco", what=what)
-    import mujoco
-
-    if _version(mujoco.__version__) < _version(least):
-        raise MissingExtraError(f"{what} needs MuJoCo >= {least}, this is {mujoco.__version__}: "
-                                f"pip install 'mujoco>={least}'")
-    return mujoco
+    """The ``mujoco`` module, at least ``least`` (:data:`MIN_MUJOCO`; :func:`require_mujoco`)."""
+    return require_mujoco(least, what)
 
 
 def writer_version(text: str) -> str | None:
@@ -151,78 +130,6 @@ def writer_version(text: str) -> str | None:
     if there is none): MuJoCo's XML writer lays files out a little differently across versions."""
     found = re.search(r"written by h4pin\.io\.mjcf through MuJoCo (\S+)'s MjSpec", text[:2000])
     return found.group(1) if found else None
-
-
-@contextlib.contextmanager
-def _full_precision(mujoco: Any) -> Iterator[bool]:
-    """MuJoCo's XML writer with 17 significant digits (every double written exactly) inside the
-    block, then its previous setting (6 by default) again. MuJoCo's Python API has no setting for
-    it; its library has one, ``_mjPRIVATE__set_xml_precision`` (what MuJoCo's own tests use),
-    reached here through ctypes. Yields False, with a warning, where the library has none (the
-    file then carries 6 digits, about 1e-6 relative)."""
-    setter = getter = None
-    folder = Path(mujoco.__file__).parent
-    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
-        for library in sorted(folder.glob(pattern)):
-            with contextlib.suppress(OSError, AttributeError):
-                lib = ctypes.CDLL(str(library))
-                setter, getter = lib._mjPRIVATE__set_xml_precision, lib._mjPRIVATE__get_xml_precision
-                break
-        if setter is not None:
-            break
-    if setter is None or getter is None:
-        warnings.warn(f"MuJoCo {mujoco.__version__}: its XML writer's precision cannot be set here; the MJCF "
-                      "keeps 6 significant digits", RuntimeWarning, stacklevel=3)
-        yield False
-        return
-    getter.restype = ctypes.c_int
-    before = getter()
-    setter(ctypes.c_int(17))
-    try:
-        yield True
-    finally:
-        setter(ctypes.c_int(before))
-
-
-def _floats(values: Any) -> list[float]:
-    return [float(v) for v in np.ravel(values)]
-
-
-def _quat(rotation: np.ndarray) -> list[float]:
-    """Quaternion (w x y z, w >= 0) of a rotation matrix."""
-    q = pin.Quaternion(np.asarray(rotation, float))
-    q.normalize()
-    w = np.array([q.w, q.x, q.y, q.z])
-    return _floats(w if w[0] >= 0 else -w)
-
-
-def _neutral(joint: Any) -> np.ndarray:
-    q = np.zeros(joint.nq)
-    if joint.nq == 2:  # unbounded revolute: (cos, sin)
-        q[0] = 1.0
-    return q
-
-
-def _motion(joint: Any) -> np.ndarray:
-    """First column of a joint's motion subspace (linear, angular), in its joint frame."""
-    jd = joint.createData()
-    joint.calc(jd, _neutral(joint))
-    s = jd.S
-    return np.asarray(s.matrix() if hasattr(s, "matrix") else s, float).reshape(6, -1)[:, 0]
-
-
-def _is_revolute(joint: Any) -> bool:
-    return joint.nv == 1 and joint.nq in (1, 2) and bool(np.allclose(_motion(joint)[:3], 0.0))
-
-
-def _is_free(joint: Any) -> bool:
-    return joint.nq == 7 and joint.nv == 6
-
-
-def _angle(joint: Any, q: np.ndarray) -> float:
-    """The angle of a revolute joint (bounded: q; unbounded: atan2(sin, cos))."""
-    v = q[joint.idx_q:joint.idx_q + joint.nq]
-    return float(v[0]) if joint.nq == 1 else float(np.arctan2(v[1], v[0]))
 
 
 def _urdf_inertials(urdf_text: str) -> dict[str, tuple[float, np.ndarray, np.ndarray]]:
@@ -528,12 +435,7 @@ def _in_series(joints: list[tuple[str, bool, np.ndarray, np.ndarray]], stiffness
 def _spring(mujoco: Any, j: Any, plan: _Plan) -> None:
     """Stiffness, rest position, damping and armature of virtual joint ``j`` (MjsJoint)."""
     k = plan.stiffness[j.name]
-    for field, value in (("stiffness", k), ("damping", plan.damping * k)):
-        now = getattr(j, field)
-        setattr(j, field, [value] + [0.0] * (len(now) - 1) if np.ndim(now) else value)  # MuJoCo 4: a 3-vector
-    j.springref = 0.0
-    j.armature = plan.armature.get(j.name, 0.0)
-    j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    set_spring(mujoco, j, k, plan.damping * k, 0.0, plan.armature.get(j.name, 0.0))
 
 
 def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
