@@ -212,6 +212,7 @@ def _restoring_signals(command: Any) -> Any:
 @app.command()
 @_restoring_signals
 def view(
+    ctx: typer.Context,
     variant: Variant | None = typer.Option(None, help=VARIANT),
     urdf: Path | None = typer.Option(None, help=URDF),
     pose: tuple[float, float, float, float] | None = typer.Option(
@@ -231,8 +232,20 @@ def view(
     quiet: bool = typer.Option(False, "--quiet", help=f"{QUIET} (of --field)"),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
     html: Path | None = typer.Option(None, "--html", hidden=True, help="old name of --out"),
+    robot: Path | None = typer.Option(None, metavar="FILE", help=f"{ROBOT}, drawn as sticks at its reference assembly "
+                                      "instead of the H4 (--variant ... --payload do not apply)"),
+    sidecar: Path | None = typer.Option(None, metavar="YAML", help=SIDECAR),
+    output: str | None = typer.Option(None, metavar="FRAME", help="with --robot: the frame of the ellipsoid and the "
+                                      "load (default: the atlas's)"),
+    atlas_path: Path | None = typer.Option(None, "--atlas", metavar="PATH", help="with --robot: draw the ellipsoid "
+                                           "field of this motor-space atlas (h4pin atlas --robot; its springs, "
+                                           "locked joints and output by default)"),
+    motor_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {MOTOR_K}"),
+    joint_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {JOINT_K}"),
+    lock: list[str] | None = typer.Option(None, metavar="JOINT", help="with --robot: a joint held rigid; repeat"),
 ) -> None:
-    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser).
+    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser). With
+    --robot FILE, any closed-loop robot: its sticks, ellipsoid, atlas field and deflected shape.
 
     Ctrl-C, SIGTERM and SIGHUP stop the server (exit 130, 143, 129)."""
     import time
@@ -278,10 +291,24 @@ def view(
     from h4pin.kinematics.closed_form import centre_pose
 
     warn_renamed()
-    h4 = load_robot(variant, urdf)
-    # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
-    scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
-                        scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
+    mech_options = ("sidecar", "output", "atlas_path", "motor_stiffness", "joint_stiffness", "lock")
+    if robot is not None:
+        h4_only = [n for n in ("variant", "urdf", "pose", "field", "rotational", "model", "mode", "payload")
+                   if _given(ctx, n)]
+        if h4_only:
+            fail(f"--{h4_only[0]} is an option of the H4's view, not of --robot")
+        own = any(_given(ctx, n) for n in ("motor_stiffness", "joint_stiffness", "lock"))
+        stiffness = (motor_stiffness, joint_stiffness) if own else None
+        scene = _mechanism_scene(robot, sidecar, output, atlas_path, stiffness, lock or [], load, scale, exaggeration,
+                                 host)
+    elif any(_given(ctx, n) for n in mech_options):
+        fail(f"--{next(n for n in mech_options if _given(ctx, n)).replace('_path', '').replace('_', '-')} goes with "
+             "--robot FILE")
+    else:
+        h4 = load_robot(variant, urdf)
+        # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
+        scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
+                            scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
     try:
         if field:
             scene.field(viewer.workspace_grid(h4), model, progress=not quiet)
@@ -505,6 +532,27 @@ def parse_motors(values: list[str]) -> dict[str, tuple[float, float, int]]:
             fail(f"--motor {name} is given twice")
         out[name] = (lo, hi, n)
     return out
+
+
+def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atlas_path: Path | None,
+                     stiffness: tuple[float, float] | None, lock: list[str], load: Any, scale: float | None,
+                     exaggeration: float | None, host: str) -> Any:
+    """``h4pin view --robot FILE``: :func:`h4pin.io.viewer_mechanism.show`; ``stiffness``: the
+    (motor, joint) stiffness given (default: the atlas's springs, else 100 and 100)."""
+    from h4pin.io import viewer_mechanism
+    from h4pin.studies import atlas as atlas_module
+    from h4pin.studies import motor_atlas
+
+    ds = atlas_module.open_atlas(atlas_path) if atlas_path is not None else None
+    if ds is None and output is None:
+        fail("--robot needs --output FRAME (or --atlas PATH, whose output frame is drawn)")
+    mech = load_mechanism(robot, sidecar)
+    springs = None
+    if ds is None or stiffness is not None:
+        k = stiffness or (motor_atlas.MOTOR_STIFFNESS, motor_atlas.JOINT_STIFFNESS)
+        springs = motor_atlas.default_springs(mech, *k, locked=lock)
+    return viewer_mechanism.show(mech, None, springs, output, lock, atlas=ds, load=load, scale=scale,
+                                 exaggeration=exaggeration, host=host)
 
 
 def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: list[str], count: int | None,
