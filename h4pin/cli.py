@@ -298,12 +298,10 @@ def view(
         if h4_only:
             fail(f"--{h4_only[0]} is an option of the H4's view, not of --robot")
         own = any(_given(ctx, n) for n in ("motor_stiffness", "joint_stiffness", "lock"))
-        stiffness = (motor_stiffness, joint_stiffness) if own else None
-        scene = _mechanism_scene(robot, sidecar, output, atlas_path, stiffness, lock or [], load, scale, exaggeration,
-                                 host)
-    elif any(_given(ctx, n) for n in mech_options):
-        fail(f"--{next(n for n in mech_options if _given(ctx, n)).replace('_path', '').replace('_', '-')} goes with "
-             "--robot FILE")
+        scene = _mechanism_scene(robot, sidecar, output, atlas_path, (motor_stiffness, joint_stiffness) if own
+                                 else None, lock or [], load, scale, exaggeration, host)
+    elif given := [n.replace("_path", "").replace("_", "-") for n in mech_options if _given(ctx, n)]:
+        fail(f"--{given[0]} goes with --robot FILE")
     else:
         h4 = load_robot(variant, urdf)
         # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.

@@ -414,7 +414,13 @@ class MechanismScene(Scene):
         try:
             vis = self._connect(vis, host)
             vis["/Grid"].set_property("visible", False)
+            vis["/Axes"].set_property("visible", False)
             draw_mechanism(vis, mechanism, q)
+            # The camera orbits the scene origin: move the robot's middle there, look from its size.
+            pin.forwardKinematics(model, d, q)
+            points = np.array([d.oMi[j].translation for j in range(model.njoints)])
+            vis.set_transform(mt.translation_matrix(-0.5 * (points.min(axis=0) + points.max(axis=0))))
+            self.look_at(np.array([1.2, -1.2, 0.9]) * max(float(np.ptp(points, axis=0).max()), 1e-3))
             if block is not None:
                 centre = d.oMf[frame_id(model, output)].translation
                 used = draw_ellipsoid(vis, "mechanism/ellipsoid", block, centre, scale)
