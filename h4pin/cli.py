@@ -131,6 +131,13 @@ MODEL = ("'paper' (eq. 30 as printed, the default of h4pin.compliance) or 'consi
 QUIET = "no progress bar"
 OVERWRITE = "replace an existing output that h4pin did not write (without it only h4pin's own files are replaced)"
 PAYLOAD = "point payload at D, kg (0: none)"
+# What the options of any closed-loop robot say (atlas, view).
+ROBOT = "a closed-loop robot's URDF (with its Gepetto sidecar YAML) or MJCF file (.xml)"
+SIDECAR = "with --robot FILE.urdf: its closed-loop sidecar (default: FILE.yaml)"
+MOTOR_K = ("stiffness of each motor, N.m/rad (N/m), when the file has no joint springs (docs/mechanisms.md: "
+           "the file's springs where it has them)")
+JOINT_K = "stiffness of every other joint, N.m/rad (N/m); 0 leaves the passive joints free"
+
 #: The one exception to ``--model paper``: the cycle's dynamic part (h4pin.studies.cycle.dynamic_deflection)
 #: divides by the first natural frequency of the symmetric part of K^-1, which the paper's
 #: unsymmetric K leaves indefinite (ZeroDivisionError), so ``h4pin cycle`` keeps its model until
@@ -205,6 +212,7 @@ def _restoring_signals(command: Any) -> Any:
 @app.command()
 @_restoring_signals
 def view(
+    ctx: typer.Context,
     variant: Variant | None = typer.Option(None, help=VARIANT),
     urdf: Path | None = typer.Option(None, help=URDF),
     pose: tuple[float, float, float, float] | None = typer.Option(
@@ -224,8 +232,20 @@ def view(
     quiet: bool = typer.Option(False, "--quiet", help=f"{QUIET} (of --field)"),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
     html: Path | None = typer.Option(None, "--html", hidden=True, help="old name of --out"),
+    robot: Path | None = typer.Option(None, metavar="FILE", help=f"{ROBOT}, drawn as sticks at its reference assembly "
+                                      "instead of the H4 (--variant ... --payload do not apply)"),
+    sidecar: Path | None = typer.Option(None, metavar="YAML", help=SIDECAR),
+    output: str | None = typer.Option(None, metavar="FRAME", help="with --robot: the frame of the ellipsoid and the "
+                                      "load (default: the atlas's)"),
+    atlas_path: Path | None = typer.Option(None, "--atlas", metavar="PATH", help="with --robot: draw the ellipsoid "
+                                           "field of this motor-space atlas (h4pin atlas --robot; its springs, "
+                                           "locked joints and output by default)"),
+    motor_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {MOTOR_K}"),
+    joint_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {JOINT_K}"),
+    lock: list[str] | None = typer.Option(None, metavar="JOINT", help="with --robot: a joint held rigid; repeat"),
 ) -> None:
-    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser).
+    """Show the robot, its compliance ellipsoid and its deflection in meshcat (browser). With
+    --robot FILE, any closed-loop robot: its sticks, ellipsoid, atlas field and deflected shape.
 
     Ctrl-C, SIGTERM and SIGHUP stop the server (exit 130, 143, 129)."""
     import time
@@ -271,10 +291,22 @@ def view(
     from h4pin.kinematics.closed_form import centre_pose
 
     warn_renamed()
-    h4 = load_robot(variant, urdf)
-    # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
-    scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
-                        scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
+    mech_options = ("sidecar", "output", "atlas_path", "motor_stiffness", "joint_stiffness", "lock")
+    if robot is not None:
+        h4_only = [n for n in ("variant", "urdf", "pose", "field", "rotational", "model", "mode", "payload")
+                   if _given(ctx, n)]
+        if h4_only:
+            fail(f"--{h4_only[0]} is an option of the H4's view, not of --robot")
+        own = any(_given(ctx, n) for n in ("motor_stiffness", "joint_stiffness", "lock"))
+        scene = _mechanism_scene(robot, sidecar, output, atlas_path, (motor_stiffness, joint_stiffness) if own
+                                 else None, lock or [], load, scale, exaggeration, host)
+    elif given := [n.replace("_path", "").replace("_", "-") for n in mech_options if _given(ctx, n)]:
+        fail(f"--{given[0]} goes with --robot FILE")
+    else:
+        h4 = load_robot(variant, urdf)
+        # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
+        scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
+                            scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
     try:
         if field:
             scene.field(viewer.workspace_grid(h4), model, progress=not quiet)
@@ -418,6 +450,7 @@ def _export_mechanism(robot: Path, sidecar: Path | None, spring: list[str] | Non
 
 @app.command()
 def atlas(
+    ctx: typer.Context,
     variant: Variant | None = typer.Option(None, help=VARIANT),
     urdf: Path | None = typer.Option(None, help=URDF),
     x: tuple[float, float, int] = typer.Option((-0.3, 0.3, 61), metavar="LO HI N", help="x grid, m"),
@@ -433,15 +466,41 @@ def atlas(
     frequency: bool = typer.Option(False, "--frequency", help="also the first natural frequency (Hz)"),
     quiet: bool = typer.Option(False, "--quiet", help=QUIET),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
+    robot: Path | None = typer.Option(None, metavar="FILE", help=f"{ROBOT}: its motor-space atlas instead of the H4's "
+                                      "workspace (the H4 options --variant ... --model do not apply)"),
+    sidecar: Path | None = typer.Option(None, metavar="YAML", help=SIDECAR),
+    output: str | None = typer.Option(None, metavar="FRAME", help="with --robot: the frame whose compliance is mapped"),
+    motor: list[str] | None = typer.Option(None, metavar="NAME=LO:HI:N", help="with --robot: a motor's grid (rad or m);"
+                                           " repeat per motor (default: its file range where finite, else the "
+                                           "reference assembly +- 0.25 rad or 0.025 m)"),
+    count: int | None = typer.Option(None, metavar="N", help="with --robot: grid points per motor not given by "
+                                     "--motor (default: 21 for one or two motors, 7 for three, 3 beyond)"),
+    motor_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {MOTOR_K}"),
+    joint_stiffness: float = typer.Option(100.0, metavar="K", help=f"with --robot: {JOINT_K}"),
+    lock: list[str] | None = typer.Option(None, metavar="JOINT", help="with --robot: a joint held rigid; repeat"),
+    threads: int | None = typer.Option(None, help="with --robot: threads of each block's compliance (default: one "
+                                       "per core)"),
 ) -> None:
     """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability
-    (and the first natural frequency)."""
+    (and the first natural frequency). With --robot FILE, any closed-loop robot's atlas over its
+    motors: worst compliance and ellipsoid at --output, validity (and the first natural frequency)."""
     import numpy as np
 
     from h4pin.files import check_output, check_replace
     from h4pin.kinematics.closed_form import centre_pose
     from h4pin.studies import atlas as atlas_module
 
+    if robot is not None:
+        h4_only = [f"--{n.replace('_', '-')}" for n in ("variant", "urdf", "x", "y", "z", "z_range", "theta", "model")
+                   if _given(ctx, n)]
+        if h4_only:
+            fail(f"{h4_only[0]} is an option of the H4's atlas; with --robot the grid is --motor NAME=LO:HI:N")
+        return _motor_atlas(robot, sidecar, output, motor or [], count, motor_stiffness, joint_stiffness, lock or [],
+                            threads, out, figures, frequency, quiet, overwrite)
+    given = [f"--{n.replace('_', '-')}" for n in ("sidecar", "output", "motor", "count", "motor_stiffness",
+                                                   "joint_stiffness", "lock", "threads") if _given(ctx, n)]
+    if given:
+        fail(f"{given[0]} goes with --robot FILE (any closed-loop robot's atlas)")
     if z and z_range:
         fail("give --z or --z-range, not both")
     for name, axis in (("--x", x), ("--y", y), ("--z-range", z_range)):
@@ -473,6 +532,100 @@ def atlas(
             f = ds.first_frequency
             typer.echo(f"first natural frequency {float(f.min()):.1f} to {float(f.max()):.1f} Hz")
     wrote(out, *(atlas_module.plot(ds, figures) if figures is not None else ()))
+
+
+
+def _given(ctx: typer.Context, name: str) -> bool:
+    """Whether the option ``name`` of the command of ``ctx`` was given (not its default)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name != "DEFAULT"
+
+
+def load_mechanism(robot: Path, sidecar: Path | None):
+    """The :class:`h4pin.elastic.Mechanism` of ``--robot`` (a URDF and its sidecar, or an MJCF)."""
+    from h4pin.elastic import Mechanism
+
+    if not robot.is_file():
+        fail(f"--robot: no file {robot}")
+    if robot.suffix.lower() == ".xml":
+        if sidecar is not None:
+            fail("--sidecar goes with a URDF (an MJCF file holds its closures)")
+        return Mechanism.from_mjcf(robot)
+    return Mechanism.from_urdf(robot, sidecar)
+
+
+def parse_motors(values: list[str]) -> dict[str, tuple[float, float, int]]:
+    """``--motor NAME=LO:HI:N`` options as ``{name: (lo, hi, n)}``."""
+    out = {}
+    for v in values:
+        name, _, spec = v.partition("=")
+        parts = spec.split(":")
+        try:
+            lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+            if len(parts) != 3:
+                raise ValueError
+        except (ValueError, IndexError):
+            fail(f"--motor takes NAME=LO:HI:N (rad or m, N points), got {v!r}")
+        if name in out:
+            fail(f"--motor {name} is given twice")
+        out[name] = (lo, hi, n)
+    return out
+
+
+def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atlas_path: Path | None,
+                     stiffness: tuple[float, float] | None, lock: list[str], load: Any, scale: float | None,
+                     exaggeration: float | None, host: str) -> Any:
+    """``h4pin view --robot FILE``: :func:`h4pin.io.viewer_mechanism.show`; ``stiffness``: the
+    (motor, joint) stiffness given (default: the atlas's springs, else 100 and 100)."""
+    from h4pin.io import viewer_mechanism
+    from h4pin.studies import atlas as atlas_module
+    from h4pin.studies import motor_atlas
+
+    ds = atlas_module.open_atlas(atlas_path) if atlas_path is not None else None
+    if ds is None and output is None:
+        fail("--robot needs --output FRAME (or --atlas PATH, whose output frame is drawn)")
+    mech = load_mechanism(robot, sidecar)
+    springs = None
+    if ds is None or stiffness is not None:
+        k = stiffness or (motor_atlas.MOTOR_STIFFNESS, motor_atlas.JOINT_STIFFNESS)
+        springs = motor_atlas.default_springs(mech, *k, locked=lock)
+    return viewer_mechanism.show(mech, None, springs, output, lock, atlas=ds, load=load, scale=scale,
+                                 exaggeration=exaggeration, host=host)
+
+
+def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: list[str], count: int | None,
+                 motor_k: float, joint_k: float, lock: list[str], threads: int | None, out: Path,
+                 figures: Path | None, frequency: bool, quiet: bool, overwrite: bool) -> None:
+    """``h4pin atlas --robot FILE``: :func:`h4pin.studies.motor_atlas.atlas`."""
+    from h4pin.files import check_output, check_replace
+    from h4pin.studies import atlas as atlas_module
+    from h4pin.studies import motor_atlas
+
+    if output is None:
+        fail("--robot needs --output FRAME (the frame whose compliance is mapped)")
+    grid = parse_motors(motor)
+    atlas_module.check_out(out, "--out")
+    check_replace(out, "--out", overwrite)
+    if figures is not None:
+        check_output(figures / "atlas_status.png", "--figures")
+        for q in ("compliance_max", *(("first_frequency",) if frequency else ()), "status"):
+            check_replace(figures / f"atlas_{q}.png", "--figures", overwrite)
+    mech = load_mechanism(robot, sidecar)
+    springs = motor_atlas.default_springs(mech, motor_k, joint_k, lock)
+    axes = motor_atlas.motor_axes(mech, grid, count=count) if count is not None else grid
+    ds = motor_atlas.atlas(mech, output, axes, springs, lock, frequency=frequency, threads=threads,
+                           progress=not quiet, out=out)
+    ok = ds.status == motor_atlas.OK
+    n_ok = int(ok.sum())
+    typer.echo(f"{mech.name}: {n_ok} of {ok.size} grid points assembled and restrained "
+               f"({', '.join(f'{s} {int((ds.status == c).sum())}' for c, s in enumerate(motor_atlas.STATUS_NAMES))})")
+    if n_ok:
+        c = ds.compliance_max * 1e6
+        typer.echo(f"worst-direction compliance at {output}: {float(c.min()):.4g} to {float(c.max()):.4g} um/N")
+        if frequency:
+            f = ds.first_frequency
+            typer.echo(f"first natural frequency {float(f.min()):.4g} to {float(f.max()):.4g} Hz")
+    wrote(out, *(motor_atlas.plot(ds, figures) if figures is not None else ()))
 
 
 @app.command()
@@ -707,7 +860,7 @@ COMPILING = ("tolerance", "atlas", "sweep")
 
 def note_first_compile(argv: list[str]) -> None:
     """Say so on stderr before a command whose first run compiles the kernels."""
-    if argv and argv[0] in COMPILING and "--help" not in argv:
+    if argv and argv[0] in COMPILING and "--help" not in argv and "--robot" not in argv:
         from h4pin.stiffness import kernel
 
         if not kernel.cached():

@@ -194,6 +194,7 @@ SLOW_IDS = frozenset({
     'tests/test_toolbox.py::test_inverse_kinematics_accuracy_depends_on_the_seed',
     'tests/test_urdf.py::test_every_variant_is_shipped_and_current',
     'tests/test_verdicts.py::test_sweep_of_random_poses[toleranced]',
+    'tests/test_viewer_mechanism.py::test_browser_draws_the_mechanism_and_its_field',
     'tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args0-cannot reach]',
     'tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args1-singular]',
     ('tests/test_viewer.py::test_cli_bad_input_is_one_line_and_writes_nothing[args13-mode index '

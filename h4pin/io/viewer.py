@@ -408,33 +408,19 @@ class MechanismScene(Scene):
         model, d = mechanism.model, mechanism.model.createData()
         pin.framesForwardKinematics(model, d, q)
         self.h4 = None
-        self.mechanism = mechanism
+        self.mechanism, self.q = mechanism, q
         self._server = None
         self.legend = [f"{mechanism.name}: {model.njoints - 1} joints, {len(mechanism.constraint_models)} closures"]
         try:
             vis = self._connect(vis, host)
             vis["/Grid"].set_property("visible", False)
+            vis["/Axes"].set_property("visible", False)
+            draw_mechanism(vis, mechanism, q)
+            # The camera orbits the scene origin: move the robot's middle there, look from its size.
+            pin.forwardKinematics(model, d, q)
             points = np.array([d.oMi[j].translation for j in range(model.njoints)])
-            size = max(float(np.ptp(points, axis=0).max()), 1e-3)
-            rod, ball = 0.01 * size, 0.025 * size
-            for j in range(1, model.njoints):
-                a, b = points[model.parents[j]], points[j]
-                vis[f"mechanism/joints/{model.names[j]}"].set_object(
-                    mg.Sphere(ball), mg.MeshLambertMaterial(color=0xd0a020 if model.names[j] in mechanism.actuated
-                                                            else 0x606060))
-                vis[f"mechanism/joints/{model.names[j]}"].set_transform(mt.translation_matrix(b))
-                if np.linalg.norm(b - a) > 1e-9:
-                    rot = _rotation_y_to(b - a)
-                    vis[f"mechanism/links/{model.names[j]}"].set_object(
-                        mg.Cylinder(float(np.linalg.norm(b - a)), rod), mg.MeshLambertMaterial(color=0x3060c0))
-                    vis[f"mechanism/links/{model.names[j]}"].set_transform(_transform(rot, 0.5 * (a + b)))
-            for cm in mechanism.constraint_models:
-                for side, (jid, place) in enumerate(((cm.joint1_id, cm.joint1_placement),
-                                                     (cm.joint2_id, cm.joint2_placement))):
-                    at = (d.oMi[jid] * place).translation
-                    vis[f"mechanism/closures/{cm.name}/{side + 1}"].set_object(
-                        mg.Sphere(0.6 * ball), mg.MeshLambertMaterial(color=0xd02020))
-                    vis[f"mechanism/closures/{cm.name}/{side + 1}"].set_transform(mt.translation_matrix(at))
+            vis.set_transform(mt.translation_matrix(-0.5 * (points.min(axis=0) + points.max(axis=0))))
+            self.look_at(np.array([1.2, -1.2, 0.9]) * max(float(np.ptp(points, axis=0).max()), 1e-3))
             if block is not None:
                 centre = d.oMf[frame_id(model, output)].translation
                 used = draw_ellipsoid(vis, "mechanism/ellipsoid", block, centre, scale)
@@ -444,6 +430,38 @@ class MechanismScene(Scene):
         except BaseException:
             self.close()
             raise
+
+
+def draw_mechanism(vis: meshcat.Visualizer, mechanism: Any, q: np.ndarray, path: str = "mechanism",
+                   colours: tuple[int, int, int, int] = (0xd0a020, 0x606060, 0x3060c0, 0xd02020),
+                   opacity: float = 1.0) -> None:
+    """A stick drawing of a :class:`h4pin.elastic.Mechanism` at q (nq,) under ``path``: each
+    joint a ball (``joints/<name>``; motors in the first colour, the others in the second), each
+    link a rod from its parent joint (``links/<name>``, third colour), each closure's two points
+    (``closures/<name>/1`` and ``2``, fourth colour). Sizes from the robot's extent at q."""
+    model, d = mechanism.model, mechanism.model.createData()
+    pin.forwardKinematics(model, d, q)
+    points = np.array([d.oMi[j].translation for j in range(model.njoints)])
+    size = max(float(np.ptp(points, axis=0).max()), 1e-3)
+    rod, ball = 0.01 * size, 0.025 * size
+
+    def material(colour: int) -> mg.MeshLambertMaterial:
+        return mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=opacity < 1)
+
+    for j in range(1, model.njoints):
+        a, b = points[model.parents[j]], points[j]
+        name = model.names[j]
+        vis[f"{path}/joints/{name}"].set_object(mg.Sphere(ball), material(colours[0 if name in mechanism.actuated
+                                                                                   else 1]))
+        vis[f"{path}/joints/{name}"].set_transform(mt.translation_matrix(b))
+        if np.linalg.norm(b - a) > 1e-9:
+            vis[f"{path}/links/{name}"].set_object(mg.Cylinder(float(np.linalg.norm(b - a)), rod), material(colours[2]))
+            vis[f"{path}/links/{name}"].set_transform(_transform(_rotation_y_to(b - a), 0.5 * (a + b)))
+    for cm in mechanism.constraint_models:
+        for side, (jid, place) in enumerate(((cm.joint1_id, cm.joint1_placement), (cm.joint2_id, cm.joint2_placement))):
+            vis[f"{path}/closures/{cm.name}/{side + 1}"].set_object(mg.Sphere(0.6 * ball), material(colours[3]))
+            vis[f"{path}/closures/{cm.name}/{side + 1}"].set_transform(mt.translation_matrix((d.oMi[jid] * place)
+                                                                                             .translation))
 
 
 def show_mechanism(mechanism: Any, q: Any, springs: Any = None, output: str | None = None, locked: Any = (), *,
