@@ -443,6 +443,14 @@ class Mechanism:
         return MechanismModes(freq, None, None)
 
 
+def checked_springs(mech: Mechanism, springs: Mapping[Any, Any], locked: Iterable[Any] = (),
+                    free_root: bool = False) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """``(springs, locked)`` of a :meth:`Mechanism.compliance` or :meth:`Mechanism.modes` call,
+    checked as the call checks them (names, values, a joint both locked and sprung), by name."""
+    stiff = _springs(mech, springs)
+    return stiff, _locked(mech, locked, stiff, free_root)
+
+
 def _springs(mech: Mechanism, springs: Mapping[Any, Any]) -> dict[str, Any]:
     """The checked springs of a call, the beams' included."""
     if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
@@ -698,4 +706,4 @@ def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, n
     return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))
 
 
-__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "MechanismModes"]
+__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "MechanismModes", "checked_springs"]

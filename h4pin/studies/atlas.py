@@ -58,7 +58,7 @@ QUANTITIES = dict(
 #: The quantity an atlas adds with ``frequency=True``.
 FREQUENCY = dict(first_frequency=("Hz", "lowest natural frequency (elastic robot, URDF inertias, actuators locked)"))
 #: How :func:`plot` shows each quantity: (factor, unit label, log colour scale).
-_DISPLAY = {
+DISPLAY = {
     "compliance_max": (1e6, "um/N", True),
     "first_frequency": (1.0, "Hz", False),
     "stiffness_z": (1e-6, "N/um", True),
@@ -109,7 +109,7 @@ def _robot_chunks(h4: Any, chunks: Any, model: str) -> Any:
         start += len(x)
 
 
-def _layout(shape: tuple[int, int, int, int], chunk: int) -> tuple[tuple[int, int, int, int], tuple[int, ...]]:
+def block_layout(shape: tuple[int, int, int, int], chunk: int) -> tuple[tuple[int, int, int, int], tuple[int, ...]]:
     """The blocks of an atlas of ``shape`` (theta, z, y, x): each block is ``(1, 1, ry, cx)``
     poses -- whole rows of x when a row fits in ``chunk`` poses, else pieces of ``chunk`` poses
     of one row -- and is both one kernel call and one zarr chunk. Returns the block shape and
@@ -224,7 +224,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             geometry object or a :class:`h4pin.stiffness.kernel.Kernel`.
         x, y, z, theta: Grid coordinates (scalars or 1-D), m and rad.
         model: ``"paper"`` or ``"consistent"`` (eq. 30; K_tt is the same in both).
-        chunk: Poses per kernel call (at most; a block is whole rows of x, :func:`_layout`).
+        chunk: Poses per kernel call (at most; a block is whole rows of x, :func:`block_layout`).
         progress: Show a tqdm progress bar.
         out: Also write the atlas there. A ``.zarr`` path streams: each block goes to the store
             as soon as it is computed, memory stays at one block whatever the grid, a killed run
@@ -249,7 +249,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
     masses = _masses(source) if frequency else None
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
-    block, grid = _layout(shape, chunk)
+    block, grid = block_layout(shape, chunk)
     check_memory(shape, frequency=frequency, chunk=chunk)
     data = {q: np.full(shape, np.nan) for q in _quantities(frequency)}
     data["status"] = np.empty(shape, dtype=np.int8)
@@ -296,7 +296,7 @@ def _dataset(axes: dict[str, np.ndarray], data: dict[str, Any], model: str, name
 #: renamed to the target once every block is in; a killed run leaves it for the next run.
 PARTIAL_TAG = "h4pin-partial"
 #: The array of the partial store that flags finished blocks (removed before the rename).
-_DONE = "h4pin_done"
+DONE = "h4pin_done"
 
 
 def partial_path(path: str | Path) -> Path:
@@ -325,7 +325,7 @@ def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tupl
     return h.hexdigest()
 
 
-def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> Any:
+def open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> Any:
     """The partial store of ``path`` (the caller holds :func:`h4pin.files.store_lock`): resumed if
     it holds this atlas (same :func:`_fingerprint`), else made anew -- in a temporary folder, moved
     into place whole."""
@@ -341,14 +341,14 @@ def _open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> 
                 tagged.to_zarr(store, mode="w", consolidated=False, compute=False)
                 group = zarr.open_group(str(store), mode="a")
                 create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
-                done = create(_DONE, shape=(n_blocks,), chunks=(n_blocks,), dtype="bool", fill_value=False)
+                done = create(DONE, shape=(n_blocks,), chunks=(n_blocks,), dtype="bool", fill_value=False)
                 done.attrs["key"] = key
                 os.replace(store, partial)  # atomic: the partial store appears whole
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
         try:
             group = zarr.open_group(str(partial), mode="a")
-            same = group[_DONE].attrs.get("key") == key
+            same = group[DONE].attrs.get("key") == key
         except (KeyError, OSError, ValueError):  # a damaged partial store (zarr's errors are ValueErrors)
             same = False
         if same:
@@ -388,7 +388,7 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     kernel._model_code(model)
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
-    block, grid = _layout(shape, chunk)
+    block, grid = block_layout(shape, chunk)
     check_memory(shape, frequency=frequency, streamed=True, chunk=chunk)
     n_blocks = int(np.prod(grid))
     lazy = {q: da.full(shape, np.nan, chunks=block) for q in _quantities(frequency)}
@@ -397,16 +397,16 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     with files.store_lock(path, "atlas"):
         check_out(path, "out", overwrite)  # again, under the lock: another run may have written it meanwhile
         clean_stale(path)
-        group = _open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
+        group = open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
         _fill(group, path, axes, block, grid, kern, model, chunk, progress, masses, frequency)
-    return _opened(path)
+    return opened(path)
 
 
 def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...],
           kern: Any, model: str, chunk: int, progress: bool, masses: Any, frequency: bool) -> None:
     """Compute the blocks of the partial store ``group`` not flagged done, then move it to ``path``."""
     shape = tuple(len(v) for v in axes.values())
-    done = group[_DONE]
+    done = group[DONE]
     flags = done[:]
     todo = np.flatnonzero(~flags)
     arrays = {q: group[q] for q in (*_quantities(frequency), "status")}
@@ -423,7 +423,7 @@ def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int,
               initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
         _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar, masses)
     partial = partial_path(path)
-    shutil.rmtree(partial / _DONE)
+    shutil.rmtree(partial / DONE)
     make_readable(partial)
     tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
     try:
@@ -434,7 +434,7 @@ def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int,
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _opened(path: Path) -> xr.Dataset:
+def opened(path: Path) -> xr.Dataset:
     """The atlas store at ``path`` opened lazily, without the store's own tag (:data:`h4pin.files.STORE_ATTR`)."""
     ds = xr.open_zarr(path, consolidated=False)
     ds.attrs.pop(files.STORE_ATTR, None)
@@ -483,7 +483,7 @@ def check_memory(n: int | tuple[int, ...], *, frequency: bool = False, streamed:
     if streamed:
         blocks = -(-n // max(1, int(chunk)))
         if shape is not None and len(shape) == 4 and min(shape) > 0:
-            blocks = math.prod(_layout(tuple(int(v) for v in shape), chunk)[1])
+            blocks = math.prod(block_layout(tuple(int(v) for v in shape), chunk)[1])
         need = blocks * BYTES_PER_BLOCK + in_flight
     else:
         blocks = 0
@@ -549,7 +549,7 @@ def open_atlas(path: str | Path) -> xr.Dataset:
     if not path.exists():
         raise FileNotFoundError(f"no atlas at {path}")
     if path.suffix == ".zarr":
-        with _opened(path) as ds:
+        with opened(path) as ds:
             return ds.load()
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()
@@ -583,7 +583,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
             values = {s: v.astype(float) for s, v in status.items()}
             vmin, vmax = -0.5, 4.5
         else:
-            factor, unit, log = _DISPLAY[q]
+            factor, unit, log = DISPLAY[q]
             values = {s: ds[q].isel(theta=s[0], z=s[1]).values * factor for s in slices}
             finite = np.concatenate([v[np.isfinite(v)] for v in values.values()])
             # Near a singularity the compliance grows without bound: colour the 1st-99th percentiles.

@@ -62,9 +62,9 @@ from h4pin.extras import require
 require("xarray", extra="studies", what="the motor-space atlas (h4pin.studies.motor_atlas)")
 import xarray as xr  # noqa: E402
 
-from h4pin import limits  # noqa: E402
+from h4pin import files, limits  # noqa: E402
 from h4pin.elastic.engine import UnassembledError  # noqa: E402
-from h4pin.elastic.mechanism import Mechanism  # noqa: E402
+from h4pin.elastic.mechanism import Mechanism, checked_springs  # noqa: E402
 from h4pin.errors import H4Error, ParameterError  # noqa: E402
 from h4pin.files import clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
 from h4pin.studies import atlas as h4_atlas  # noqa: E402
@@ -210,10 +210,10 @@ def _dim(name: str) -> str:
 
 
 def _layout(shape: tuple[int, ...], chunk: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Blocks of whole rows of the last motor (:func:`h4pin.studies.atlas._layout` on the last two
+    """Blocks of whole rows of the last motor (:func:`h4pin.studies.atlas.block_layout` on the last two
     motors): the block shape and the number of blocks along each dim."""
     ny = shape[-2] if len(shape) > 1 else 1
-    b4, _ = h4_atlas._layout((1, 1, ny, shape[-1]), chunk)
+    b4, _ = h4_atlas.block_layout((1, 1, ny, shape[-1]), chunk)
     block = (*(1,) * (len(shape) - 2), *b4[4 - min(len(shape), 2):])
     return block, tuple(-(-s // b) for s, b in zip(shape, block, strict=True))
 
@@ -261,7 +261,7 @@ def _setup(mech: Mechanism, output: str, springs: Mapping[str, Any] | None, lock
         raise ParameterError(f"frequency: True or False, got {frequency!r}")
     locked = tuple(locked)
     springs = default_springs(mech, locked=locked) if springs is None else dict(springs)
-    mech._locked(locked, mech._springs(springs), False)  # checked now: names, both locked and sprung
+    checked_springs(mech, springs, locked)  # checked now: names, values, both locked and sprung
     return Setup(output, springs, locked, frequency)
 
 
@@ -469,46 +469,54 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
     _check_memory(mech, shape, chunk, frequency, True)
     lazy = _empty(mech, shape, frequency, lambda s, v: da.full(s, v, chunks=(*block, *s[len(shape):])))
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
-    clean_stale(path)
-    group, fd = h4_atlas._open_partial(path, _template(mech, grid_axes, setup, lazy),
-                                       _fingerprint(mech, grid_axes, setup, block), math.prod(grid))
-    try:
-        done = group[h4_atlas._DONE]
-        flags = done[:]
-        known = np.zeros(shape, bool)
-        for b in np.flatnonzero(flags):
-            known[_slices(b, shape, block, grid)] = True
-        status = group["status"][:]
-        Q = np.where(known[..., None], group["configuration"][:], np.nan)
-        run = _Run(mech, grid_axes, setup, threads, Q, known, known & (status != UNASSEMBLED), reference)
-        arrays = {q: group[q] for q in (*QUANTITIES, *(FREQUENCY if frequency else ()), "status")}
-        todo = np.flatnonzero(~flags)
-        with tqdm(total=math.prod(shape), desc="atlas", unit="point", disable=not progress,
-                  initial=int(known.sum())) as bar:
-            for count, b in enumerate(todo):
-                if stop_after is not None and count >= stop_after:
-                    return None
-                points = _block_points(b, shape, block, grid)
-                fields = run.block(points)
-                sl = _slices(b, shape, block, grid)
-                local = tuple(np.array(points).T - np.array([s.start for s in sl])[:, None])
-                for q, arr in arrays.items():
-                    v = np.empty((*(s.stop - s.start for s in sl), *fields[q].shape[1:]), fields[q].dtype)
-                    v[local] = fields[q]
-                    arr[sl] = v
-                flags[b] = True
-                done[:] = flags  # after the block's values: a block killed half-way is computed again
-                bar.update(len(points))
-        partial = h4_atlas.partial_path(path)
-        shutil.rmtree(partial / h4_atlas._DONE)
-        make_readable(partial)
-        with tempfile.TemporaryDirectory(prefix=tmp_prefix(path), dir=path.parent) as tmp:
-            if path.exists():
-                os.replace(path, Path(tmp) / "old")
-            os.replace(partial, path)
-    finally:
-        os.close(fd)
-    return xr.open_zarr(path, consolidated=False)
+    with files.store_lock(path, "atlas"):
+        h4_atlas.check_out(path, "out")  # again, under the lock: another run may have written it meanwhile
+        clean_stale(path)
+        group = h4_atlas.open_partial(path, _template(mech, grid_axes, setup, lazy),
+                                      _fingerprint(mech, grid_axes, setup, block), math.prod(grid))
+        return _fill(mech, path, group, grid_axes, setup, shape, block, grid, reference, frequency, threads,
+                     progress, stop_after)
+
+
+def _fill(mech: Mechanism, path: Path, group: Any, grid_axes: dict[str, np.ndarray], setup: Any,
+          shape: tuple[int, ...], block: tuple[int, ...], grid: tuple[int, ...], reference: np.ndarray,
+          frequency: bool, threads: int | None, progress: bool, stop_after: int | None) -> xr.Dataset | None:
+    """The blocks :func:`stream` has not done yet, into its partial store, then the store moved
+    into place (the caller holds the store's lock)."""
+    done = group[h4_atlas.DONE]
+    flags = done[:]
+    known = np.zeros(shape, bool)
+    for b in np.flatnonzero(flags):
+        known[_slices(b, shape, block, grid)] = True
+    status = group["status"][:]
+    Q = np.where(known[..., None], group["configuration"][:], np.nan)
+    run = _Run(mech, grid_axes, setup, threads, Q, known, known & (status != UNASSEMBLED), reference)
+    arrays = {q: group[q] for q in (*QUANTITIES, *(FREQUENCY if frequency else ()), "status")}
+    todo = np.flatnonzero(~flags)
+    with tqdm(total=math.prod(shape), desc="atlas", unit="point", disable=not progress,
+              initial=int(known.sum())) as bar:
+        for count, b in enumerate(todo):
+            if stop_after is not None and count >= stop_after:
+                return None
+            points = _block_points(b, shape, block, grid)
+            fields = run.block(points)
+            sl = _slices(b, shape, block, grid)
+            local = tuple(np.array(points).T - np.array([s.start for s in sl])[:, None])
+            for q, arr in arrays.items():
+                v = np.empty((*(s.stop - s.start for s in sl), *fields[q].shape[1:]), fields[q].dtype)
+                v[local] = fields[q]
+                arr[sl] = v
+            flags[b] = True
+            done[:] = flags  # after the block's values: a block killed half-way is computed again
+            bar.update(len(points))
+    partial = h4_atlas.partial_path(path)
+    shutil.rmtree(partial / h4_atlas.DONE)
+    make_readable(partial)
+    with tempfile.TemporaryDirectory(prefix=tmp_prefix(path), dir=path.parent) as tmp:
+        if path.exists():
+            os.replace(path, Path(tmp) / "old")
+        os.replace(partial, path)
+    return h4_atlas.opened(path)
 
 
 def motors(ds: xr.Dataset) -> list[str]:
@@ -547,7 +555,7 @@ def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels:
     panels = _panels(ds, max_panels)
     written = []
     for q in ("compliance_max", *(("first_frequency",) if "first_frequency" in ds else ()), "status"):
-        factor, unit, log = h4_atlas._DISPLAY[q] if q != "status" else (1.0, "", False)
+        factor, unit, log = h4_atlas.DISPLAY[q] if q != "status" else (1.0, "", False)
         fig = Figure(figsize=(4.2 * len(panels) + 1.0, 4.0), layout="constrained")
         axs = fig.subplots(1, len(panels), squeeze=False)[0]
         values = [ds[q].isel(p).values.astype(float) * factor for p in panels]
