@@ -33,7 +33,7 @@ from h4pin.errors import (  # noqa: E402
 from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
 from h4pin.robot import H4, load  # noqa: E402
 from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
-from h4pin.vibration import Frequencies, modes  # noqa: E402
+from h4pin.vibration import modes  # noqa: E402
 
 __version__ = "0.1.0"
 
@@ -45,6 +45,16 @@ from h4pin.io import erd as _erd  # noqa: E402
 if _erd.available():
     _erd.register()
 
+def __getattr__(name: str):
+    if name == "Frequencies":  # one result type: h4pin.Modes, for one pose or many
+        import warnings
+
+        warnings.warn("h4pin.Frequencies is now h4pin.Modes (one result type for one pose or many); the old "
+                      "name goes in the next release", DeprecationWarning, stacklevel=2)
+        return Modes
+    raise AttributeError(f"module 'h4pin' has no attribute {name!r}")
+
+
 __all__ = [
     "H4",
     "VARIANTS",
@@ -52,7 +62,6 @@ __all__ = [
     "ConvergenceError",
     "ElasticH4",
     "Elements",
-    "Frequencies",
     "H4Error",
     "H4Geometry",
     "H4Params",

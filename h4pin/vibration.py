@@ -6,16 +6,16 @@ robot and for the mode shapes. The two agree to round-off (``tests/test_frequenc
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from h4pin import limits, verdicts
+from h4pin.elastic.engine import Modes
 from h4pin.elastic.h4 import ElasticH4, elastic_model
-from h4pin.elastic.modal import Modes, Payload
 from h4pin.elastic.modal import modes as pinocchio_modes
+from h4pin.elastic.payload import Payload
 from h4pin.errors import ParameterError
 from h4pin.inputs import check_choice, check_flag, describe, real_array
 from h4pin.kinematics.closed_form import as_poses
@@ -31,31 +31,6 @@ def _robot(robot: Any):
     if isinstance(robot, H4):
         return robot
     raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {describe(robot)}")
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Frequencies:
-    """Natural frequencies at many poses (:func:`modes` with (N, 4) poses).
-
-    Attributes:
-        frequencies: (N, m) Hz, ascending per pose; NaN past a pose's massive count and where its
-            status is not 0.
-        massive: (N,) how many massive directions each pose has (its frequencies).
-        status: (N,) int8 verdicts (:mod:`h4pin.verdicts`; 0: computed).
-        poses: (N, 4) [x, y, z, theta] (m, rad).
-        payload: the payload, or None.
-    """
-
-    frequencies: np.ndarray
-    massive: np.ndarray
-    status: np.ndarray
-    poses: np.ndarray
-    payload: Any
-
-    @property
-    def first(self) -> np.ndarray:
-        """(N,) the lowest natural frequency of each pose (Hz; NaN where its status is not 0)."""
-        return self.frequencies[:, 0]
 
 
 METHODS = ("auto", "compiled", "pinocchio")
@@ -81,9 +56,9 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
         data: a ``pin.Data`` of the elastic model for the Pinocchio route.
 
     Returns:
-        One pose: :class:`h4pin.Modes` (its shapes computed by the Pinocchio route on first
-        access when the twin gave the frequencies). (N, 4): :class:`Frequencies` (refused poses
-        NaN, with their status).
+        :class:`h4pin.Modes`, the same fields for one pose or many: one pose, frequencies (m,)
+        (its shapes computed by the Pinocchio route on first access when the twin gave the
+        frequencies); (N, 4), frequencies (N, m) (refused poses NaN, with their status).
 
     Raises:
         PoseError: ``pose`` is not real numbers of shape (4,) or (N, 4) (bools, text, ``None``,
@@ -124,12 +99,12 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
                 m = int(counts[0, 0])
                 f = freq[0, :m].copy()
                 f.setflags(write=False)
-                return Modes(f, x, payload, int(counts[0, 1]) - m, lambda: pinocchio_modes(
-                    robot, x, payload, link_inertias=link_inertias, data=data)._shapes())
+                return Modes(f, m, 0, payload, x, lambda: pinocchio_modes(
+                    robot, x, payload, link_inertias=link_inertias, data=data)._shapes(), int(counts[0, 1]) - m)
         return pinocchio_modes(robot, x, payload, link_inertias=link_inertias, data=data)  # its typed error
     if compiled:
         freq, counts, status = frequencies(h4, x, payload, link_inertias=link_inertias)
-        return Frequencies(freq, counts[:, 0].copy(), status, x, payload)
+        return Modes(freq, counts[:, 0].copy(), status, payload, x)
     from h4pin.stiffness.api import compliance
 
     status = compliance(h4, x, "consistent", on_error="nan").status.astype(np.int8)
@@ -139,7 +114,17 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
     freq = np.full((len(x), width), np.nan)
     for k, r in enumerate(rows):
         freq[k, :len(r)] = r
-    return Frequencies(freq, np.array([len(r) for r in rows]), status, x, payload)
+    return Modes(freq, np.array([len(r) for r in rows]), status, payload, x)
 
 
-__all__ = ["METHODS", "Frequencies", "modes"]
+def __getattr__(name: str) -> Any:
+    if name == "Frequencies":  # one result type: h4pin.Modes, for one pose or many
+        import warnings
+
+        warnings.warn("h4pin.Frequencies is now h4pin.Modes (one result type for one pose or many); the old "
+                      "name goes in the next release", DeprecationWarning, stacklevel=2)
+        return Modes
+    raise AttributeError(f"module 'h4pin.vibration' has no attribute {name!r}")
+
+
+__all__ = ["METHODS", "modes"]

@@ -72,7 +72,7 @@ def test_payload_on_massless_links_is_the_closed_form(proto, elements):
         lam, phi = lam.real[order], phi.real[:, order]
         phi /= np.sqrt(np.einsum("im,ij,jm->m", phi, m6, phi))  # mass-normalised
         assert res.frequencies.shape == (6,)
-        assert res.massless == model.model.nv - 28 - 6  # 16 or 56 springs; 6 massive directions
+        assert res.condensed == model.model.nv - 28 - 6  # 16 or 56 springs; 6 massive directions
         np.testing.assert_allclose(res.frequencies, np.sqrt(lam) / (2 * np.pi), rtol=TOL, atol=0)
         assert same_up_to_sign(res.shapes_tp[:, :6], phi.T) <= 1e-6
         # the lateral bars follow in static equilibrium (zero torque on their revolutes)
@@ -88,7 +88,7 @@ def test_a_point_mass_on_massless_links_sees_the_translational_compliance(proto)
         res = modes(model, x, Payload(mass), link_inertias=False)
         ctt = h4pin.compliance(proto, x, model="consistent").translational
         lam, vec = np.linalg.eigh(np.linalg.inv(ctt) / mass)
-        assert res.massless == 16 - 3
+        assert res.condensed == 16 - 3
         np.testing.assert_allclose(res.frequencies, np.sqrt(lam) / (2 * np.pi), rtol=TOL, atol=0)
         assert same_up_to_sign(res.shapes_tp[:, :3], vec.T / np.sqrt(mass)) <= 1e-6
 
@@ -217,7 +217,7 @@ def test_the_usage_example_of_the_doc_runs():
     namespace: dict = {}
     exec(compile(code, "docs/modes.md", "exec"), namespace)
     assert isinstance(namespace["res"], Modes)
-    assert isinstance(namespace["batch"], h4pin.Frequencies) and namespace["batch"].first.shape == (2,)
+    assert isinstance(namespace["batch"], h4pin.Modes) and namespace["batch"].first.shape == (2,)
 
 
 def test_a_new_payload_is_never_served_a_freed_ones_mass_model():

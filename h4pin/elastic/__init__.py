@@ -27,6 +27,7 @@ from h4pin.elastic.engine import (
     FrameOutput,
     Insertion,
     JointOutput,
+    Modes,
     UnassembledError,
     UnrestrainedMotionError,
     VirtualJoint,
@@ -34,8 +35,8 @@ from h4pin.elastic.engine import (
     insert_joints,
 )
 from h4pin.elastic.h4 import ElasticH4, elastic_model
-from h4pin.elastic.mechanism import Mechanism, MechanismModes
-from h4pin.elastic.modal import Modes, modes
+from h4pin.elastic.mechanism import Mechanism
+from h4pin.elastic.modal import modes
 from h4pin.elastic.payload import Payload
 
 
@@ -45,6 +46,10 @@ def __getattr__(name: str):
                        "h4pin.compliance returns a Compliance); the old name goes in the next release",
                        DeprecationWarning, stacklevel=2)
         return compliance_matrix
+    if name == "MechanismModes":
+        _warnings.warn("h4pin.elastic.MechanismModes is now h4pin.elastic.Modes (one result type for natural "
+                       "frequencies); the old name goes in the next release", DeprecationWarning, stacklevel=2)
+        return Modes
     raise AttributeError(f"module 'h4pin.elastic' has no attribute {name!r}")
 
 
@@ -63,6 +68,6 @@ class _OldModesModule(_types.ModuleType):
 _sys.modules.setdefault("h4pin.elastic.modes", _OldModesModule("h4pin.elastic.modes"))
 
 __all__ = ["Beam", "ElasticH4", "FrameOutput", "Insertion", "JointCoupling", "JointOutput", "Mechanism",
-           "MechanismModes", "Modes", "Payload",
+           "Modes", "Payload",
            "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "compliance_matrix", "elastic_model",
            "insert_joints", "modes"]

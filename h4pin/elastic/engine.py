@@ -398,6 +398,80 @@ def compliance(*args: Any, **kwargs: Any) -> np.ndarray:
     return compliance_matrix(*args, **kwargs)
 
 
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Modes:
+    """Undamped natural modes, of one configuration or of a batch, the same fields either way:
+    what :func:`h4pin.modes` (the H4 at a pose or many), :func:`h4pin.elastic.modal.modes` and
+    :meth:`h4pin.elastic.Mechanism.modes` (a configuration or many) return.
+
+    Attributes:
+        frequencies: (m,) Hz ascending, or (N, m) for a batch (NaN past each one's count, and
+            where its status is not 0).
+        massive: how many frequencies each has: the admissible directions that carry mass (the
+            massless ones are condensed statically); an int, or (N,).
+        status: the verdict (:mod:`h4pin.verdicts`, 0: computed); an int, or (N,) int8.
+        payload: the payload, or None.
+        poses: the H4's pose (4,) or poses (N, 4) [x, y, z, theta] (m, rad); None for a mechanism.
+        shapes_q: (m, nv) each mode's joint motion, mass-normalised (``dq^T M dq = 1``); one
+            configuration only, computed on first access when a compiled twin gave the frequencies.
+        shapes_tp: (m, 8) the H4 plate's motion of each mode (the H4 only).
+        first: the first frequency, a float or (N,).
+    """
+
+    frequencies: np.ndarray
+    massive: Any
+    status: Any = 0
+    payload: Any = None
+    poses: np.ndarray | None = None
+    shapes: Any = dataclasses.field(default=None, repr=False)  # (shapes_tp or None, shapes_q), or a callable
+    condensed: Any = dataclasses.field(default=None, repr=False)  # massless directions (the old count)
+
+    @property
+    def first(self) -> Any:
+        f = self.frequencies
+        return float(f[0]) if f.ndim == 1 else f[:, 0]
+
+    def _shapes(self) -> tuple[np.ndarray | None, np.ndarray]:
+        if self.frequencies.ndim != 1:
+            raise ParameterError("shapes: of one configuration at a time (a batch gives its frequencies)")
+        if callable(self.shapes):
+            object.__setattr__(self, "shapes", self.shapes())
+        if self.shapes is None:
+            raise ParameterError("shapes: not computed for these modes")
+        return self.shapes
+
+    @property
+    def shapes_q(self) -> np.ndarray:
+        return self._shapes()[1]
+
+    @property
+    def shapes_tp(self) -> np.ndarray:
+        tp = self._shapes()[0]
+        if tp is None:
+            raise ParameterError("shapes_tp: the H4 plate's motions (a mechanism's modes have shapes_q)")
+        return tp
+
+    @property
+    def pose(self) -> np.ndarray | None:
+        """Deprecated name of :attr:`poses` (kept one release)."""
+        _deprecated("Modes.pose is now Modes.poses")
+        return self.poses
+
+    @property
+    def massless(self) -> Any:
+        """Deprecated: the massless directions condensed; :attr:`massive` counts the frequencies
+        (kept one release)."""
+        _deprecated("Modes.massless is deprecated: Modes.massive counts the frequencies (the massive directions)")
+        return self.condensed
+
+
+def _deprecated(message: str) -> None:
+    import warnings
+
+    warnings.warn(message + "; the old name goes in the next release", DeprecationWarning, stacklevel=3)
+
+
 def _unrestrained(model: pin.Model, frozen: np.ndarray, cond: float) -> UnrestrainedMotionError:
     """The error naming the frozen mechanism's least restrained motion."""
     _, s, vt = np.linalg.svd(frozen)
@@ -544,6 +618,7 @@ def _add_chain(new: pin.Model, parent_id: int, o_m_parent: pin.SE3, joints: list
     return jid, pin.SE3(np.eye(3), previous)
 
 
-__all__ = ["CLOSURE_TOL", "RANK_TOL", "SINGULAR_COND", "FrameOutput", "Insertion", "JointOutput", "Output",
+__all__ = ["CLOSURE_TOL", "MASSLESS_TOL", "RANK_TOL", "SINGULAR_COND", "FrameOutput", "Insertion", "JointOutput",
+           "Modes", "Output", "admissible_basis", "compliance_matrix", "undamped_modes",
            "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "closure_residual", "compliance",
            "insert_joints", "length_scale", "output_jacobian", "stiffness_vector"]

@@ -22,7 +22,6 @@ compliance of output frames under joint springs (the engine of :mod:`h4pin.elast
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import threading
 import warnings
@@ -40,6 +39,7 @@ from h4pin.elastic.engine import (
     MASSLESS_TOL,
     FrameOutput,
     JointOutput,
+    Modes,
     UnassembledError,
     admissible_basis,
     undamped_modes,
@@ -49,28 +49,6 @@ from h4pin.lookup import finite_configuration, model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
 ASSEMBLY_TOL = 1e-10
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class MechanismModes:
-    """Undamped modes of a mechanism at a configuration or a batch (:meth:`Mechanism.modes`).
-
-    Attributes:
-        frequencies: (m,) Hz, ascending (the massive directions; massless ones condensed); for a
-            batch (N, m), NaN past a configuration's last.
-        shapes_q: (m, nv) mass-normalised joint motions (one configuration; None for a batch).
-        massless: the directions condensed (one configuration; None for a batch).
-    """
-
-    frequencies: np.ndarray
-    shapes_q: np.ndarray | None
-    massless: int | None
-
-    @property
-    def first(self) -> np.ndarray | float:
-        """The first frequency (Hz): a float, or (N,) for a batch."""
-        f = self.frequencies
-        return float(f[0]) if f.ndim == 1 else f[:, 0].copy()
 
 
 def _items(value: Any, single: tuple[type, ...], what: str) -> list[Any]:
@@ -419,7 +397,7 @@ class Mechanism:
 
     def modes(self, q: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (), *,
               payload: tuple[str, Any] | None = None, free_root: bool = False, method: str = "auto",
-              threads: int | None = None) -> MechanismModes:
+              threads: int | None = None) -> Modes:
         """Undamped natural modes at an assembled q (nq,), or the frequencies at each of a batch
         Q (N, nq), with the model's inertias, the springs and the locked joints of
         :meth:`compliance` (a free-flyer root held unless ``free_root``), and an optional
@@ -427,7 +405,7 @@ class Mechanism:
         the frame's axes). Massless directions are condensed statically
         (:func:`h4pin.elastic.modal.undamped_modes`). One configuration gives the shapes too (the
         Pinocchio route); a batch gives frequencies (N, m) (``method`` and ``threads`` as in
-        :meth:`compliance`); :attr:`MechanismModes.first` is the first frequency.
+        :meth:`compliance`); :attr:`Modes.first <h4pin.elastic.engine.Modes>` is the first frequency.
 
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
@@ -440,7 +418,7 @@ class Mechanism:
             return _modes_one(self, Q[0], stiff, lock, payload)
         freq = batch.frequencies(self, Q, stiff, lock, payload, method, threads,
                                  lambda x: _modes_one(self, x, stiff, lock, payload).frequencies)
-        return MechanismModes(freq, None, None)
+        return Modes(freq, np.sum(np.isfinite(freq), axis=1), np.zeros(len(freq), dtype=np.int8), payload)
 
 
 def checked_springs(mech: Mechanism, springs: Mapping[Any, Any], locked: Iterable[Any] = (),
@@ -476,7 +454,7 @@ def _locked(mech: Mechanism, locked: Iterable[Any], springs: Mapping[str, Any], 
 
 
 def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...],
-               payload: Any) -> MechanismModes:
+               payload: Any) -> Modes:
     """:meth:`Mechanism.modes` at one configuration, by the Pinocchio route."""
     model, d = mech.model, mech.data
     k = engine.stiffness_vector(model, stiff)
@@ -490,7 +468,7 @@ def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tupl
         jf = pin.getJointJacobian(model, d, pay[0], pin.LOCAL)
         mass = mass + jf.T @ pay[1].matrix() @ jf
     freq, shapes, massless = undamped_modes(n, k, mass)
-    return MechanismModes(freq, shapes, massless)
+    return Modes(freq, len(freq), 0, payload, None, (None, shapes), massless)
 
 
 def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, springs: Any,
@@ -706,4 +684,12 @@ def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, n
     return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))
 
 
-__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "MechanismModes", "checked_springs"]
+def __getattr__(name: str) -> Any:
+    if name == "MechanismModes":  # one result type for natural frequencies
+        warnings.warn("h4pin.elastic.MechanismModes is now h4pin.elastic.Modes (one result type for natural "
+                      "frequencies); the old name goes in the next release", DeprecationWarning, stacklevel=2)
+        return Modes
+    raise AttributeError(f"module 'h4pin.elastic.mechanism' has no attribute {name!r}")
+
+
+__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "Modes", "checked_springs"]

@@ -32,14 +32,13 @@ carried by ``actuator_i_elastic`` (a rigid forearm on that spring). See ``docs/m
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from h4pin.elastic import engine
-from h4pin.elastic.engine import MASSLESS_TOL, admissible_basis, undamped_modes  # noqa: F401  (re-exported)
+from h4pin.elastic.engine import MASSLESS_TOL, Modes, admissible_basis, undamped_modes  # noqa: F401  (re-exported)
 from h4pin.elastic.h4 import ElasticH4, elastic_model, mass_model  # noqa: F401  (mass_model: re-exported)
 from h4pin.elastic.payload import Payload
 from h4pin.errors import ParameterError
@@ -47,46 +46,6 @@ from h4pin.kinematics.closed_form import as_pose
 
 #: Length (m) that turns the rotations of dtp into lengths when the sign of a shape is chosen.
 _SIGN_LENGTH = 0.1
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Modes:
-    """The undamped modes of the elastic H4 at a pose (:func:`h4pin.modes`), ascending frequency.
-
-    Attributes:
-        frequencies: (m,) Hz, ascending; m is the number of massive directions (the admissible
-            motions less the massless ones, condensed).
-        pose: (4,) the pose [x, y, z, theta] (m, rad).
-        payload: the payload, or None.
-        massless: how many admissible directions carried no mass and were condensed.
-        shapes_tp: (m, 8) each mode's plate motion dtp = [dD (m), dOmega (rad), domega_1,
-            domega_2 (rad)] (world axes at D, as :func:`h4pin.compliance`), mass-normalised as
-            ``shapes_q``.
-        shapes_q: (m, nv) each mode's motion of the elastic model's velocity coordinates,
-            mass-normalised: ``shapes_q[i] @ M @ shapes_q[i] = 1`` (M the joint-space inertia
-            with the payload); sign: the largest entry of ``shapes_tp`` (rotations times 0.1 m)
-            is positive. Both shapes come from this module's Pinocchio route, computed on first
-            access when the compiled twin gave the frequencies.
-    """
-
-    frequencies: np.ndarray
-    pose: np.ndarray
-    payload: Payload | None
-    massless: int
-    shapes: Any = dataclasses.field(default=None, repr=False)  # (shapes_tp, shapes_q), or a callable giving them
-
-    def _shapes(self) -> tuple[np.ndarray, np.ndarray]:
-        if callable(self.shapes):
-            object.__setattr__(self, "shapes", self.shapes())
-        return self.shapes
-
-    @property
-    def shapes_tp(self) -> np.ndarray:
-        return self._shapes()[0]
-
-    @property
-    def shapes_q(self) -> np.ndarray:
-        return self._shapes()[1]
 
 
 def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_inertias: bool = True,
@@ -105,7 +64,8 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
             :attr:`ElasticH4.data <h4pin.elastic.h4.ElasticH4>`).
 
     Returns:
-        :class:`Modes`: frequencies (m,) Hz ascending, shapes_tp (m, 8), shapes_q (m, nv).
+        :class:`~h4pin.elastic.engine.Modes`: frequencies (m,) Hz ascending, shapes_tp (m, 8),
+        shapes_q (m, nv).
 
     Raises:
         PoseError, UnreachablePoseError: a bad pose, or one the robot cannot take.
@@ -138,7 +98,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     shapes_tp *= sign[:, None]
     for a in (freq, shapes_tp, shapes_q, x):
         a.setflags(write=False)
-    return Modes(freq, x, payload, massless, (shapes_tp, shapes_q))
+    return Modes(freq, len(freq), 0, payload, x, (shapes_tp, shapes_q), massless)
 
 
 __all__ = ["MASSLESS_TOL", "Modes", "Payload", "admissible_basis", "mass_model", "modes", "undamped_modes"]
