@@ -12,7 +12,7 @@ import pytest
 from conftest import sample_poses
 
 import h4pin
-from h4pin import verdicts, vibration
+from h4pin import verdicts
 from h4pin.description.elements import ILLUSTRATIVE
 from h4pin.elastic.modal import modes as pinocchio_modes
 from h4pin.stiffness import frequencies as fr
