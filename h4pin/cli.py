@@ -448,6 +448,16 @@ def _export_mechanism(robot: Path, sidecar: Path | None, spring: list[str] | Non
                         overwrite=overwrite)
 
 
+def _atlas_ranges(ds: Any, ok: Any, frequency: bool, where: str, fmt: str) -> None:
+    """The ranges of an atlas's worst compliance (and first frequency) over its valid points."""
+    if int(ok.sum()):
+        c = ds.compliance_max * 1e6
+        typer.echo(f"worst-direction compliance{where}: {float(c.min()):{fmt}} to {float(c.max()):{fmt}} um/N")
+        if frequency:
+            f = ds.first_frequency
+            typer.echo(f"first natural frequency {float(f.min()):{fmt}} to {float(f.max()):{fmt}} Hz")
+
+
 @app.command()
 def atlas(
     ctx: typer.Context,
@@ -523,14 +533,8 @@ def atlas(
     ds = atlas_module.atlas(h4, grid["x"], grid["y"], zs, theta or [0.0], model, progress=not quiet, out=out,
                             frequency=frequency, overwrite=overwrite)
     ok = ds.status == 0  # lazy (dask) for a streamed .zarr atlas: reduced chunk by chunk
-    n_ok = int(ok.sum())
-    typer.echo(f"{n_ok} of {ok.size} poses reachable and regular")
-    if n_ok:
-        c = ds.compliance_max * 1e6
-        typer.echo(f"worst-direction compliance {float(c.min()):.1f} to {float(c.max()):.1f} um/N")
-        if frequency:
-            f = ds.first_frequency
-            typer.echo(f"first natural frequency {float(f.min()):.1f} to {float(f.max()):.1f} Hz")
+    typer.echo(f"{int(ok.sum())} of {ok.size} poses reachable and regular")
+    _atlas_ranges(ds, ok, frequency, "", ".1f")
     wrote(out, *(atlas_module.plot(ds, figures) if figures is not None else ()))
 
 
@@ -616,15 +620,9 @@ def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: l
     ds = motor_atlas.atlas(mech, output, axes, springs, lock, frequency=frequency, threads=threads,
                            progress=not quiet, out=out)
     ok = ds.status == motor_atlas.OK
-    n_ok = int(ok.sum())
-    typer.echo(f"{mech.name}: {n_ok} of {ok.size} grid points assembled and restrained "
+    typer.echo(f"{mech.name}: {int(ok.sum())} of {ok.size} grid points assembled and restrained "
                f"({', '.join(f'{s} {int((ds.status == c).sum())}' for c, s in enumerate(motor_atlas.STATUS_NAMES))})")
-    if n_ok:
-        c = ds.compliance_max * 1e6
-        typer.echo(f"worst-direction compliance at {output}: {float(c.min()):.4g} to {float(c.max()):.4g} um/N")
-        if frequency:
-            f = ds.first_frequency
-            typer.echo(f"first natural frequency {float(f.min()):.4g} to {float(f.max()):.4g} Hz")
+    _atlas_ranges(ds, ok, frequency, f" at {output}", ".4g")
     wrote(out, *(motor_atlas.plot(ds, figures) if figures is not None else ()))
 
 

@@ -449,17 +449,24 @@ def _reduced(nz, ks):
 
 
 @njit(cache=True, nogil=True)
+def _product(a, b):
+    """a @ b, skipping the zeros of a (the closures' and the tree's sparse rows)."""
+    out = np.zeros((a.shape[0], b.shape[1]))
+    for i in range(a.shape[0]):
+        for k in range(a.shape[1]):
+            f = a[i, k]
+            if f != 0.0:
+                for u in range(b.shape[1]):
+                    out[i, u] += f * b[k, u]
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _compliance(lo, g, nz, out):
     """out = (g nz) H^-1 (g nz)^T with H = lo lo^T: forward substitution, then X^T X."""
-    m, nv = g.shape
+    m = g.shape[0]
     n = nz.shape[1]
-    x = np.zeros((n, m))
-    for u in range(n):
-        for c in range(nv):
-            f = nz[c, u]
-            if f != 0.0:
-                for r in range(m):
-                    x[u, r] += g[r, c] * f
+    x = _product(g, nz).T.copy()
     for u in range(n):
         for v in range(u):
             for r in range(m):
@@ -563,13 +570,7 @@ def _frequencies(nz, lo, mass, col, freq):
     for c in range(nv):
         for u in range(n):
             b[c, u] = nz[c, u] * col[c]
-    mb = np.zeros((nv, n))
-    for c in range(nv):
-        for e in range(nv):
-            f = mass[c, e]
-            if f != 0.0:
-                for u in range(n):
-                    mb[c, u] += f * b[e, u]
+    mb = _product(mass, b)
     w = np.zeros((n, n))
     for c in range(nv):
         for u in range(n):

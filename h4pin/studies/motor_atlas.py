@@ -265,6 +265,20 @@ def _setup(mech: Mechanism, output: str, springs: Mapping[str, Any] | None, lock
     return Setup(output, springs, locked, frequency)
 
 
+def _plan(mech: Mechanism, output: str, axes: Any, springs: Any, locked: Iterable[str], frequency: bool, chunk: int,
+          streamed: bool) -> tuple[Any, np.ndarray, dict[str, np.ndarray], tuple[int, ...], tuple[int, ...],
+                                   tuple[int, ...]]:
+    """An atlas's setup, reference assembly, motor axes, grid shape, block and block grid, its
+    size checked (:func:`atlas` and :func:`stream`)."""
+    setup = _setup(mech, output, springs, locked, frequency)
+    reference = mech.assemble()
+    grid_axes = motor_axes(mech, axes, reference)
+    shape = tuple(len(v) for v in grid_axes.values())
+    block, grid = _layout(shape, chunk)
+    _check_memory(mech, shape, chunk, frequency, streamed)
+    return setup, reference, grid_axes, shape, block, grid
+
+
 def _check_memory(mech: Mechanism, shape: tuple[int, ...], chunk: int, frequency: bool, streamed: bool) -> None:
     n = math.prod(shape)
     per = BYTES_PER_POINT + 16 * mech.model.nq  # the quantities; the configurations (kept for continuation)
@@ -416,12 +430,8 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
                       threads=threads, progress=progress)
     if out is not None:
         h4_atlas.check_out(out)
-    setup = _setup(mech, output, springs, locked, frequency)
-    reference = mech.assemble()
-    grid_axes = motor_axes(mech, axes, reference)
-    shape = tuple(len(v) for v in grid_axes.values())
-    block, grid = _layout(shape, chunk)
-    _check_memory(mech, shape, chunk, frequency, False)
+    setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
+                                                            False)
     data = _empty(mech, shape, frequency)
     data["status"] = np.zeros(shape, dtype=np.int8)
     run = _Run(mech, grid_axes, setup, threads, data["configuration"], np.zeros(shape, bool), np.zeros(shape, bool),
@@ -461,12 +471,8 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
     path = h4_atlas.check_out(out, "out")
     if path.suffix != ".zarr":
         raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
-    setup = _setup(mech, output, springs, locked, frequency)
-    reference = mech.assemble()
-    grid_axes = motor_axes(mech, axes, reference)
-    shape = tuple(len(v) for v in grid_axes.values())
-    block, grid = _layout(shape, chunk)
-    _check_memory(mech, shape, chunk, frequency, True)
+    setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
+                                                            True)
     lazy = _empty(mech, shape, frequency, lambda s, v: da.full(s, v, chunks=(*block, *s[len(shape):])))
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
     with files.store_lock(path, "atlas"):
