@@ -26,8 +26,10 @@ STATUS_NAMES = ("ok", "unreachable", "outside joint limits", "bars interpenetrat
 #: cond x 1e-16, so an accepted pose's K is accurate to ~1e-7 (tests/test_verdicts.py checks it
 #: against the independent statics route at the worst accepted poses).
 SINGULAR_COND = 1e9
-#: Condition number of a closure Jacobian (the 24x24 passive block of the H4, or a Gepetto
-#: toolbox constraint Jacobian) above which the plate's motion is taken as uncontrolled.
+#: Condition number of a closed-loop system (the 24x24 passive block of the H4, a Gepetto toolbox
+#: constraint Jacobian, or the generic engine's frozen mechanism ``[Jc; S_locked; S_elastic]`` in
+#: scaled units) from which the motion it leaves is taken as uncontrolled: the configuration is
+#: refused as singular. (:data:`SINGULAR_COND` is the H4's M1 threshold, another matrix.)
 CLOSURE_SINGULAR_COND = 1e10
 
 ERRORS: dict[int, type[PoseError]] = {UNREACHABLE: UnreachablePoseError, LIMITS: JointLimitError,

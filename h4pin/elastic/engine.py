@@ -50,13 +50,11 @@ import pinocchio as pin
 from h4pin._compat import constraint_calc
 from h4pin.errors import ParameterError, SingularPoseError
 from h4pin.lookup import frame_id
+from h4pin.verdicts import CLOSURE_SINGULAR_COND
 
 #: Relative size (scaled units) under which a singular value of the closure and lock rows is a
 #: redundant constraint (for example the z rows of a planar loop closed by a 3-D point contact).
 RANK_TOL = 1e-10
-#: Condition number (scaled units) of the frozen mechanism ``[Jc; S_locked; S_elastic]`` from
-#: which a configuration is refused as singular.
-SINGULAR_COND = 1e10
 #: Closure residual (relative to :func:`length_scale` for translations, rad for rotations) above
 #: which ``q`` is not assembled.
 CLOSURE_TOL = 1e-9
@@ -269,7 +267,7 @@ def _scaling(model: pin.Model, data: pin.Data, constraint_models: Any, length: f
 def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *, locked: Sequence[str],
                stiffness: Mapping[str, Any], outputs: Sequence[Output], data: pin.Data | None = None,
                constraint_datas: Any = None, closure_tol: float = CLOSURE_TOL,
-               singular_cond: float = SINGULAR_COND, extra_rows: np.ndarray | None = None) -> np.ndarray:
+               singular_cond: float = CLOSURE_SINGULAR_COND, extra_rows: np.ndarray | None = None) -> np.ndarray:
     """Compliance C (m, m) of the outputs at an assembled configuration: ``dy = C w`` (module docstring).
 
     Args:
@@ -320,7 +318,7 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
 def admissible_basis(model: pin.Model, constraint_models: Any, q: np.ndarray, locked: tuple[str, ...],
                      k: np.ndarray, d: pin.Data, extra_rows: np.ndarray | None = None, *,
                      constraint_datas: Any = None, closure_tol: float = CLOSURE_TOL,
-                     singular_cond: float = SINGULAR_COND) -> np.ndarray:
+                     singular_cond: float = CLOSURE_SINGULAR_COND) -> np.ndarray:
     """N (nv, nz): a basis of the admissible motions ``dq = N z`` (z in scaled coordinates:
     translations over the length scale), after the closure and singularity checks (module
     docstring); ``k`` (nv,) the springs (zero where none), ``extra_rows`` (r, nv): further
@@ -618,7 +616,18 @@ def _add_chain(new: pin.Model, parent_id: int, o_m_parent: pin.SE3, joints: list
     return jid, pin.SE3(np.eye(3), previous)
 
 
-__all__ = ["CLOSURE_TOL", "MASSLESS_TOL", "RANK_TOL", "SINGULAR_COND", "FrameOutput", "Insertion", "JointOutput",
+def __getattr__(name: str) -> Any:
+    if name == "SINGULAR_COND":  # one name, one meaning: h4pin.verdicts.SINGULAR_COND is the H4's M1 threshold
+        import warnings
+
+        warnings.warn("h4pin.elastic.engine.SINGULAR_COND is now h4pin.verdicts.CLOSURE_SINGULAR_COND (the same "
+                      "1e10; verdicts.SINGULAR_COND is the H4's M1 threshold); the old name goes in the next release",
+                      DeprecationWarning, stacklevel=2)
+        return CLOSURE_SINGULAR_COND
+    raise AttributeError(f"module 'h4pin.elastic.engine' has no attribute {name!r}")
+
+
+__all__ = ["CLOSURE_TOL", "MASSLESS_TOL", "RANK_TOL", "FrameOutput", "Insertion", "JointOutput",
            "Modes", "Output", "admissible_basis", "compliance_matrix", "undamped_modes",
            "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "closure_residual", "compliance",
            "insert_joints", "length_scale", "output_jacobian", "stiffness_vector"]
