@@ -3,7 +3,7 @@
 
 The H4's atlas (:mod:`h4pin.studies.atlas`) maps its workspace; a robot read from its own files
 has no closed forms, so its atlas is a grid over its motor positions (one axis per motor of
-:attr:`~h4pin.elastic.Mechanism.actuated`, rad or m). At each grid point the loops are closed by
+``Mechanism.actuated``, rad or m). At each grid point the loops are closed by
 continuation (:meth:`~h4pin.elastic.Mechanism.assemble`, from an assembled neighbour, else from the
 reference assembly), then the compliance of the output frame
 (:meth:`~h4pin.elastic.Mechanism.compliance`, the compiled generic path over each block) gives:
