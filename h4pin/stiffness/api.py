@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from h4pin import limits
-from h4pin.description.elements import ELEMENTS, Elements
+from h4pin.description.elements import Elements
 from h4pin.errors import LoadError, ParameterError
 from h4pin.inputs import check_choice, check_flag, check_instance, describe, real_array
 from h4pin.kinematics import closed_form as cf
@@ -61,7 +61,7 @@ _BATCH_CHUNK = 8192
 _F64 = np.dtype(np.float64)
 
 __all__ = ["BACKENDS", "METHODS", "MODELS", "ON_ERRORS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS",
-           "Compliance", "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
+           "Compliance", "Matrices", "Raw", "as_load", "check_options", "compliance", "matrices_at", "n_matrix"]
 
 
 class LazyTerms(Mapping):
@@ -225,7 +225,7 @@ def matrices_at(h4, pose: np.ndarray) -> Matrices:
     return from_kinematics(kin.kinematics(h4, pose))
 
 
-def _check_options(model: str, on_error: str, method: str) -> None:
+def check_options(model: str, on_error: str, method: str) -> None:
     """The options of :func:`compliance`: each a ``str`` among its names, else a :class:`ParameterError`."""
     check_choice(model, MODELS, "model")
     check_choice(on_error, ON_ERRORS, "on_error")
@@ -265,7 +265,7 @@ def _backend(h4, method: str) -> Callable[..., Raw]:
 
 def _names(active: Elements | None) -> tuple[str, ...]:
     """The terms of a result: eq. 30's four, then one per element kind on."""
-    return TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
+    return TERMS + (() if active is None else tuple(k.name for k in active.kinds_on()))
 
 
 def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements | bool | None = None,
