@@ -145,15 +145,31 @@ def kinematics(h4, pose: np.ndarray, data: pin.Data | None = None, st: PlateStat
     return Kinematics(x, st, q, pts, jb @ np.linalg.inv(to_tp), ja)
 
 
-def frame_id(model: pin.Model, frame: str | int) -> int:
-    """The id of ``frame`` (a name or an id) in ``model``, or a :class:`ParameterError` naming it."""
+#: The frame types a name is looked up in, in this order, when several frames share it (a link's
+#: BODY frame before the FIXED_JOINT or JOINT frame of a joint of the same name).
+FRAME_TYPES = ("OP_FRAME", "BODY", "FIXED_JOINT", "JOINT", "SENSOR")
+
+
+def frame_id(model: pin.Model, frame: str | int, kind: Any = None, what: str = "frame") -> int:
+    """The id of ``frame`` in ``model``: a name (of type ``kind``, a ``pin.FrameType``, if given;
+    when several frames share the name, the first of the types :data:`FRAME_TYPES` that has it)
+    or an id (checked against the model's frames); else a :class:`ParameterError` that names it
+    (prefixed by ``what``). The one frame lookup of h4pin (the generic engine's outputs too)."""
     if isinstance(frame, str):
+        if kind is not None:
+            if not model.existFrame(frame, kind):
+                raise ParameterError(f"{what}: no frame {frame!r} of type {kind} in the model")
+            return int(model.getFrameId(frame, kind))
         if not model.existFrame(frame):
-            raise ParameterError(f"frame: no frame {frame!r} in the model")
-        return model.getFrameId(frame)
+            raise ParameterError(f"{what}: no frame {frame!r} in the model")
+        for t in FRAME_TYPES:
+            ft = getattr(pin.FrameType, t)
+            if model.existFrame(frame, ft):
+                return int(model.getFrameId(frame, ft))
+        return int(model.getFrameId(frame))
     fid = int(frame)
     if not 0 <= fid < model.nframes:
-        raise ParameterError(f"frame: id {fid} out of range (the model has {model.nframes} frames)")
+        raise ParameterError(f"{what}: id {fid} out of range (the model has {model.nframes} frames)")
     return fid
 
 
@@ -283,5 +299,6 @@ def frame_position(h4, name: str, q: np.ndarray | None = None, data: pin.Data | 
 #: The name h4pin.studies.atlas calls it by, until it uses the public one.
 _configuration_pack = configuration_pack
 
-__all__ = ["Kinematics", "as_configuration", "assemble", "closure_residuals", "configuration", "configuration_pack",
-           "frame_position", "gravity_torques", "jacobian", "kinematics", "passive_map", "potential_energy", "state"]
+__all__ = ["FRAME_TYPES", "Kinematics", "as_configuration", "assemble", "closure_residuals", "configuration",
+           "configuration_pack", "frame_id", "frame_position", "gravity_torques", "jacobian", "kinematics",
+           "passive_map", "potential_energy", "state"]
