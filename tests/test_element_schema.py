@@ -40,8 +40,13 @@ def test_each_form_is_one_compiled_term_equal_to_its_numpy_reading(form):
         n = rng.normal(size=3)
         n /= np.linalg.norm(n)
         length, c = rng.uniform(0.05, 0.4), rng.uniform(0.5, 2.0)
-        parts = [pipeline.form_part(code, t, c, length, *e, *n) for t in range(pipeline.form_count(code))]
-        got = sum(p[0] * np.outer(p[1:], p[1:]) for p in parts)
+        a, b = np.array(pipeline.form_frame(pipeline.form_plane(code), *e, *n)).reshape(2, 3)
+        got = np.zeros((6, 6))
+        for t in range(pipeline.form_count(code)):
+            ct, fe, fa, fb, fw, me, ma, mb, mw = pipeline.form_part(code, t, c, length)
+            world = np.eye(3)[t] if t < 3 else np.zeros(3)
+            u = np.r_[fe * e + fa * a + fb * b + fw * world, me * e + ma * a + mb * b + mw * world]
+            got += ct * np.outer(u, u)
         want = c * statics_elements.form_compliance(form, e, n, length)
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-14 * np.max(np.abs(want)))
 

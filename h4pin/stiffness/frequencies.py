@@ -458,7 +458,8 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
         _rotm(b0[12:15], q[i], Rq)
         _mm(Ra, Rq, Rf)
         _mv(Ra, b0[12:15], axes[i])
-        O[i] = b0[9:12]
+        for a in range(3):  # element by element: an array-to-slice copy compiles numba's error formatter
+            O[i, a] = b0[9 + a]
         _spatial(Rf, O[i], b0[15:15 + _INERTIA], M6[i])
         for a in range(3):
             axes[4 + i, a] = 0.5 * (A[2 * i, a] + A[2 * i + 1, a])
@@ -499,7 +500,8 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     for a in range(3):
         O[20, a] += D[a]
     _spatial(Rp, O[20], bp[15:15 + _INERTIA], M6[20])
-    O[23] = D  # the payload: its spatial inertia in frame D (central-bar axes), at D, turned to the world
+    for a in range(3):  # the payload: its spatial inertia in frame D (central-bar axes), at D, turned to the world
+        O[23, a] = D[a]
     pay = MP[_O_PAY:_O_PAY + 36].reshape(6, 6)
     for a in range(6):
         for b in range(6):
@@ -565,17 +567,23 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
             c, length = EG[off + 2 * s], EG[off + 2 * s + 1]
             if c == 0.0:
                 continue
-            pipeline.element_axis(G, axis, s, 1, S, Xs, EA)
-            e = Xs[EA:EA + 3, 0].copy()
-            pipeline.element_axis(G, normal, s, 1, S, Xs, EA)
-            n = Xs[EA:EA + 3, 0].copy()
+            for k in range(2):  # the axis into Xs[EA], the second axis into Xs[EA + 3] (one inlined copy)
+                pipeline.element_axis(G, axis if k == 0 else normal, s, 1, S, Xs, EA + 3 * k)
+            e0, e1, e2 = Xs[EA, 0], Xs[EA + 1, 0], Xs[EA + 2, 0]
+            a0, a1, a2, b0, b1, b2 = pipeline.form_frame(pipeline.form_plane(form), e0, e1, e2, Xs[EA + 3, 0],
+                                                         Xs[EA + 4, 0], Xs[EA + 5, 0])
             pipeline.site_point(G, site, s, 0, 1, S, Xs)
             o = Xs[EA:EA + 3, 0].copy()
             y0 = sy[stype, s]
             for p in range(pipeline.form_count(form)):
-                cp, u0, u1, u2, u3, u4, u5 = pipeline.form_part(form, p, c, length, e[0], e[1], e[2], n[0], n[1], n[2])
+                cp, fe, fa, fb, fw, me, ma, mb, mw = pipeline.form_part(form, p, c, length)
                 sc = math.sqrt(cp)
-                us[0], us[1], us[2], us[3], us[4], us[5] = u0, u1, u2, u3, u4, u5
+                for d in range(3):  # u_p in the world (pipeline.form_part)
+                    w = 1.0 if d == p else 0.0
+                    ve, va, vb = (e0, a0, b0) if d == 0 else ((e1, a1, b1) if d == 1 else (e2, a2, b2))
+                    us[d] = fe * ve + fa * va + fb * vb + fw * w
+                    us[3 + d] = me * ve + ma * va + mb * vb + mw * w
+                u0, u1, u2, u3, u4, u5 = us[0], us[1], us[2], us[3], us[4], us[5]
                 for d in range(6):
                     R[y0 + d, t] = sc * us[d]
                 for m in range(8):
@@ -588,7 +596,8 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
                     for a in range(8):
                         R[a, t] += Y[a, m] * g
                 t += 1
-            axes[30 + 4 * stype + s] = o  # the site's point, for the bodies' twists below
+            for d in range(3):  # the site's point, for the bodies' twists below
+                axes[30 + 4 * stype + s, d] = o[d]
     return ny, ns
 
 

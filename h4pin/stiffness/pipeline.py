@@ -162,10 +162,10 @@ _EM = 12  # (4, 3) its moment about the site's point
 _EA = 24  # (3,) the element's axis (first the site's point)
 _EN = 27  # (3,) its second axis
 _EU = 30  # (6,) the part u_t of its form
-_EC = 36  # its compliance c_t
-_EG = 37  # (4,) u_t . w_a per bar a of the site
+_EB = 36  # (3,) its frame's second normal b
+_EG = 39  # (4,) u_t . w_a per bar a of the site
 #: Rows of the element scratch (:func:`element_axis`, :func:`site_point` write into them).
-EA, XROWS = _EA, 41
+EA, XROWS = _EA, 43
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -609,46 +609,63 @@ def form_count(form):
     return 4 if form == FORM_BEAM_BENDING else 1
 
 
-@njit(**_STAGE)
-def _part(rot, c, vx, vy, vz):
-    """A part on the couple (``rot``) or on the force along v."""
-    return (c, 0.0, 0.0, 0.0, vx, vy, vz) if rot else (c, vx, vy, vz, 0.0, 0.0, 0.0)
-
-
-@njit(**_STAGE)
-def form_part(form, t, c, length, ex, ey, ez, nx, ny, nz):
-    """Part t of an element's compliance in its form (:data:`h4pin.description.elements.FORMS`),
+@njit(cache=True, nogil=True)
+def form_part(form, t, c, length):
+    """Part t of an element's compliance in its form (:data:`h4pin.description.elements.FORMS`):
     ``C = sum_t c_t u_t u_t^T`` over :func:`form_count` parts, u_t (6,) a twist [translation;
-    rotation] at the site's point, dual to its wrench [force; couple]: returns (c_t, u_t). The
-    element's compliance c (1/EI, 1/GJ for a beam), its length, its unit axis e and second axis n.
-    A beam's bending in each plane normal to e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2``
-    (the cantilever of :func:`h4pin.stiffness.elements.beam_compliance`), in the planes of e and
-    the two normals n1, n2 (n1 x n2 = e); out of plane, in the plane of e and n only (n made
-    normal to e: the force along n, the couple about e x n). The one compiled term of a form:
-    the compliance (:func:`_element_kind`) and the natural frequencies
-    (:mod:`h4pin.stiffness.frequencies`) both read it. Scalars in and out: it runs in lane loops."""
+    rotation] at the site's point, dual to its wrench [force; couple], given in the element's
+    frame (e its unit axis, a and b the unit normals of :func:`form_frame`) and the world's:
+    returns ``(c_t, fe, fa, fb, fw, me, ma, mb, mw)`` with ``u_t = [fe e + fa a + fb b + fw x_t;
+    me e + ma a + mb b + mw x_t]`` (x_t world axis t), from the element's compliance c (1/EI,
+    1/GJ for a beam) and length. A beam's bending in the plane of e and a:
+    ``L^3/(3EI) (f.a + 3 m.b / (2L))^2 + L/(4EI) (m.b)^2`` (the cantilever of
+    :func:`h4pin.stiffness.elements.beam_compliance`), then in the plane of e and b (with -a);
+    out of plane (a along the second axis), the first plane only. The one compiled term of a
+    form: the compliance (:func:`_element_kind`) and the natural frequencies
+    (:mod:`h4pin.stiffness.frequencies`) both read it; its numbers do not depend on the pose
+    (scalars, computed once an element, outside the lane loops)."""
     if form == FORM_FORCE or form == FORM_COUPLE:
-        return _part(form == FORM_COUPLE, c, 1.0 if t == 0 else 0.0, 1.0 if t == 1 else 0.0, 1.0 if t == 2 else 0.0)
-    if form == FORM_FORCE_AXIAL or form == FORM_COUPLE_AXIAL or form == FORM_BEAM_TORSION:
-        return _part(form != FORM_FORCE_AXIAL, c * length if form == FORM_BEAM_TORSION else c, ex, ey, ez)
-    if form == FORM_BEAM_BENDING_OUT:  # a = n normal to e, b = e x a
-        d = nx * ex + ny * ey + nz * ez
-        ax, ay, az = nx - d * ex, ny - d * ey, nz - d * ez
-    else:  # a = n1 = e x h (h the axis of e's least component), b = n2 = e x n1
-        hx = 1.0 if (abs(ex) <= abs(ey) and abs(ex) <= abs(ez)) else 0.0
-        hy = 1.0 if (hx == 0.0 and abs(ey) <= abs(ez)) else 0.0
-        ax, ay, az = _cross_t(ex, ey, ez, hx, hy, 1.0 - hx - hy)
+        rot = 1.0 if form == FORM_COUPLE else 0.0
+        return c, 0.0, 0.0, 0.0, 1.0 - rot, 0.0, 0.0, 0.0, rot
+    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
+        rot = 1.0 if form == FORM_COUPLE_NORMAL else 0.0
+        a, b = (1.0, 0.0) if t == 0 else (0.0, 1.0)
+        return c, 0.0, (1.0 - rot) * a, (1.0 - rot) * b, 0.0, 0.0, rot * a, rot * b, 0.0
+    if form == FORM_FORCE_AXIAL:
+        return c, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if form == FORM_COUPLE_AXIAL or form == FORM_BEAM_TORSION:
+        return c * length if form == FORM_BEAM_TORSION else c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0
+    k = 1.5 / length  # beams bending: t = 0, 1 in the plane of e and a; t = 2, 3 in that of e and b
+    f = 1.0 if t % 2 == 0 else 0.0
+    m = k if t % 2 == 0 else 1.0
+    cube = c * length * length * length / 3.0
+    if t < 2:
+        return cube if t == 0 else 0.25 * c * length, 0.0, f, 0.0, 0.0, 0.0, 0.0, m, 0.0
+    return cube if t == 2 else 0.25 * c * length, 0.0, 0.0, f, 0.0, 0.0, -m, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def form_plane(form):
+    """Whether the form's normal a is the element's second axis made normal to e (a beam bending
+    out of its plane), rather than the first of two normals to e (:func:`form_frame`)."""
+    return form == FORM_BEAM_BENDING_OUT
+
+
+@njit(**_STAGE)
+def form_frame(plane, ex, ey, ez, nx, ny, nz):
+    """The unit normals (a, b) of an element's frame, b = e x a: a = n made normal to e if
+    ``plane`` (:func:`form_plane`), else e x h (h the world axis of e's least component)."""
+    hx = 1.0 if (abs(ex) <= abs(ey) and abs(ex) <= abs(ez)) else 0.0
+    hy = 1.0 if (hx == 0.0 and abs(ey) <= abs(ez)) else 0.0
+    cx, cy, cz = _cross_t(ex, ey, ez, hx, hy, 1.0 - hx - hy)
+    d = nx * ex + ny * ey + nz * ez
+    ax = nx - d * ex if plane else cx
+    ay = ny - d * ey if plane else cy
+    az = nz - d * ez if plane else cz
     inv = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
     ax, ay, az = ax * inv, ay * inv, az * inv
     bx, by, bz = _cross_t(ex, ey, ez, ax, ay, az)
-    if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
-        return _part(form == FORM_COUPLE_NORMAL, c, ax if t == 0 else bx, ay if t == 0 else by, az if t == 0 else bz)
-    if t >= 2:  # the second bending plane: (a, b) -> (b, -a)
-        ax, ay, az, bx, by, bz = bx, by, bz, -ax, -ay, -az
-    k = 1.5 / length
-    if t % 2 == 0:
-        return c * length * length * length / 3.0, ax, ay, az, k * bx, k * by, k * bz
-    return 0.25 * c * length, 0.0, 0.0, 0.0, bx, by, bz
+    return ax, ay, az, bx, by, bz
 
 
 @njit(**_STAGE)
@@ -681,13 +698,22 @@ def _element_kind(G, EG, row, nl, S, X, E):
                 X[_EM + 3 * slot + 1, l] = rz * fx - rx * fz
                 X[_EM + 3 * slot + 2, l] = rx * fy - ry * fx
             slot += 1
-        element_axis(G, axis, s, nl, S, X, _EA)
-        element_axis(G, normal, s, nl, S, X, _EN)
+        for k in range(2):  # the axis, then the second axis (one inlined copy of element_axis)
+            element_axis(G, axis if k == 0 else normal, s, nl, S, X, _EA if k == 0 else _EN)
+        plane = form_plane(form)
+        for l in range(nl):  # the element's frame: a into rows _EN (its second axis, spent), b into _EU + 3
+            ax, ay, az, bx, by, bz = form_frame(plane, X[_EA, l], X[_EA + 1, l], X[_EA + 2, l], X[_EN, l],
+                                                X[_EN + 1, l], X[_EN + 2, l])
+            X[_EN, l], X[_EN + 1, l], X[_EN + 2, l], X[_EB, l], X[_EB + 1, l], X[_EB + 2, l] = ax, ay, az, bx, by, bz
         for t in range(form_count(form)):
-            for l in range(nl):
-                X[_EC, l], X[_EU, l], X[_EU + 1, l], X[_EU + 2, l], X[_EU + 3, l], X[_EU + 4, l], X[_EU + 5, l] = \
-                    form_part(form, t, c, length, X[_EA, l], X[_EA + 1, l], X[_EA + 2, l], X[_EN, l], X[_EN + 1, l],
-                              X[_EN + 2, l])
+            ct, fe, fa, fb, fw, me, ma, mb, mw = form_part(form, t, c, length)
+            wx, wy, wz = (1.0 if t == 0 else 0.0), (1.0 if t == 1 else 0.0), (1.0 if t == 2 else 0.0)
+            for d in range(3):
+                w = wx if d == 0 else (wy if d == 1 else wz)
+                for l in range(nl):  # u_t in the world
+                    ve, va, vb = X[_EA + d, l], X[_EN + d, l], X[_EB + d, l]
+                    X[_EU + d, l] = fe * ve + fa * va + fb * vb + fw * w
+                    X[_EU + 3 + d, l] = me * ve + ma * va + mb * vb + mw * w
             for a in range(slot):  # g_a = u_t . w_a
                 fa, ma = _EF + 3 * a, _EM + 3 * a
                 for l in range(nl):
@@ -703,7 +729,7 @@ def _element_kind(G, EG, row, nl, S, X, E):
                     if not site_bars(G, site, s, n):
                         continue
                     for l in range(nl):
-                        E[m, n, l] += X[_EC, l] * X[_EG + ta, l] * X[_EG + tb, l]
+                        E[m, n, l] += ct * X[_EG + ta, l] * X[_EG + tb, l]
                     tb += 1
                 ta += 1
 
@@ -862,20 +888,26 @@ def _scratch(lanes, kinds, want_terms):
     H, F, U, TB, X, E, Z (the element ones of size 1 when no element is on)."""
     nt = 4 + kinds
     ne = lanes if kinds else 1
-    sizes = (_ROWS * lanes, 64 * lanes, 64 * lanes, _RROWS * lanes, 96 * lanes, lanes, _FROWS * lanes, 256 * lanes,
-             (nt if want_terms else 1) * 64 * lanes, (XROWS if kinds else 1) * lanes, 64 * ne, 64 * ne)
-    total = 0
-    for size in sizes:
-        total += size
-    buf = np.empty(total)
-    o = np.cumsum(np.array(sizes)) - np.array(sizes)
-    return (buf[o[0]:o[0] + sizes[0]].reshape(_ROWS, lanes), buf[o[1]:o[1] + sizes[1]].reshape(8, 8, lanes),
-            buf[o[2]:o[2] + sizes[2]].reshape(8, 8, lanes), buf[o[3]:o[3] + sizes[3]].reshape(_RROWS, lanes),
-            buf[o[4]:o[4] + sizes[4]].reshape(6, 4, 4, lanes), buf[o[5]:o[5] + sizes[5]],
-            buf[o[6]:o[6] + sizes[6]].reshape(_FROWS, lanes), buf[o[7]:o[7] + sizes[7]].reshape(4, 8, 8, lanes),
-            buf[o[8]:o[8] + sizes[8]].reshape(nt if want_terms else 1, 8, 8, lanes),
-            buf[o[9]:o[9] + sizes[9]].reshape(XROWS if kinds else 1, lanes),
-            buf[o[10]:o[10] + sizes[10]].reshape(8, 8, ne), buf[o[11]:o[11] + sizes[11]].reshape(8, 8, ne))
+    s0, s1, s2, s3 = _ROWS * lanes, 64 * lanes, 64 * lanes, _RROWS * lanes
+    s4, s5, s6, s7 = 96 * lanes, lanes, _FROWS * lanes, 256 * lanes
+    s8, s9, s10 = (nt if want_terms else 1) * 64 * lanes, (XROWS if kinds else 1) * lanes, 64 * ne
+    o1 = s0  # the offsets, summed by hand (no temporary arrays: one allocation a call)
+    o2 = o1 + s1
+    o3 = o2 + s2
+    o4 = o3 + s3
+    o5 = o4 + s4
+    o6 = o5 + s5
+    o7 = o6 + s6
+    o8 = o7 + s7
+    o9 = o8 + s8
+    o10 = o9 + s9
+    o11 = o10 + s10
+    buf = np.empty(o11 + s10)
+    return (buf[:o1].reshape(_ROWS, lanes), buf[o1:o2].reshape(8, 8, lanes), buf[o2:o3].reshape(8, 8, lanes),
+            buf[o3:o4].reshape(_RROWS, lanes), buf[o4:o5].reshape(6, 4, 4, lanes), buf[o5:o6],
+            buf[o6:o7].reshape(_FROWS, lanes), buf[o7:o8].reshape(4, 8, 8, lanes),
+            buf[o8:o9].reshape(nt if want_terms else 1, 8, 8, lanes), buf[o9:o10].reshape(XROWS if kinds else 1, lanes),
+            buf[o10:o11].reshape(8, 8, ne), buf[o11:o11 + s10].reshape(8, 8, ne))
 
 
 #: Width of one pose's row of the intermediates (:func:`run`'s ``X``): M1^-1 (64), the factors
@@ -969,13 +1001,13 @@ def one(pose, G, EG, model, K, q, T, want_terms, Xo, want_x):  # pragma: no cove
     straight-line code (a call of :func:`run` for one pose runs the vectorised loops' set-ups and
     remainders, 4 to 6 us; this, about 1.5 us). The caller allocates the outputs: a compiled
     function that returns arrays pays for boxing them."""
-    cond = np.empty(1)
-    status = np.empty(1, dtype=np.int8)
-    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, K.reshape(1, 8, 8), q.reshape(1, 4), cond, status,
-          T.reshape(1, T.shape[0], 8, 8), want_terms, np.empty((1, 4, 4)), False, Xo.reshape(1, Xo.shape[0]), want_x)
-    return cond[0], status[0]
+    cs = np.empty(2)  # the condition and the status (a float), one allocation
+    Kr = K.reshape(1, 8, 8)
+    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, Kr, q.reshape(1, 4), cs[0:1], cs[1:2],
+          T.reshape(1, T.shape[0], 8, 8), want_terms, Kr, False, Xo.reshape(1, Xo.shape[0]), want_x)  # no J: K's
+    return cs[0], np.int8(cs[1])
 
 
 __all__ = ["CONSISTENT", "EA", "FASTMATH", "F_GC", "F_TV", "LANES", "NX", "PAPER", "S_A", "S_B", "S_LW", "S_ROWS",
-           "XROWS", "X_F", "X_S", "X_Y", "atan2", "element_axis", "form_count", "form_part", "one", "run", "site_bars",
-           "site_point"]
+           "XROWS", "X_F", "X_S", "X_Y", "atan2", "element_axis", "form_count", "form_frame", "form_part",
+           "form_plane", "one", "run", "site_bars", "site_point"]
