@@ -300,8 +300,8 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
             complex numbers and masked arrays are refused), or not finite with ``on_error="raise"``.
         UnreachablePoseError, SingularPoseError: as ``on_error`` says.
     """
-    if elements is None and terms is None and type(model) is str and type(method) is str and on_error == "raise" \
-            and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype is _F64:
+    if elements is None and terms is None and type(model) is str and type(method) is str and type(on_error) is str \
+            and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype is _F64:
         # The usual call: one pose of the robot's own elements, through the one-pose entry of the
         # compiled pipeline; its robot-dependent part looked up once per (robot, model, method).
         fast = _FAST.get((id(h4), model, method))
