@@ -36,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import limits
-from h4pin.description.elements import ELEMENTS, Elements
+from h4pin.description.elements import Elements, kinds
 from h4pin.description.geometry import BAR_CLEARANCE, params_from_geometry
 from h4pin.description.params import VARIANTS, H4Params
 from h4pin.description.reader import read
@@ -235,10 +235,10 @@ def _as_elements(elements: Elements | dict[str, Any]) -> Elements:
         for name in elements:
             if not isinstance(name, str):
                 raise ParameterError(f"elements: a field name must be a str, got {describe(name)}")
-        unknown = set(elements) - set(ELEMENTS)
+        known = [k.name for k in kinds()]
+        unknown = set(elements) - set(known)
         if unknown:
-            raise ParameterError(f"elements: unknown field(s) {', '.join(sorted(unknown))}; "
-                                 f"known: {', '.join(ELEMENTS)}")
+            raise ParameterError(f"elements: unknown field(s) {', '.join(sorted(unknown))}; known: {', '.join(known)}")
         try:
             return Elements(**elements)
         except ParameterError as exc:  # the field's own message, said to be of this argument

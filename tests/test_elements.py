@@ -238,10 +238,12 @@ def test_leg_wrenches_on_the_base_balance_the_external_load(proto, poses):
                                   for k in range(2))
     np.testing.assert_allclose(f_sum, 0.0, atol=1e-12)
     np.testing.assert_allclose(m_sum, 0.0, atol=1e-12)
-    # the shaft tilt carries the base couple's part normal to u_i
-    for i in range(4):
-        normal = el.normal_pair(g.u[i])
-        np.testing.assert_allclose(loads["shaft_tilt"][2 * i:2 * i + 2], normal.T @ base[i, 3:], atol=1e-15)
+    # the shaft tilt carries the base couple's part normal to u_i: its term, spring by spring
+    c = np.array([1e-5, 2e-5, 3e-5, 4e-5])
+    springs = np.concatenate([el.normal_pair(g.u[i]).T @ base[i, 3:] for i in range(4)])  # (8, 8)
+    hand = (springs.T * np.repeat(c, 2)) @ springs
+    term = el.element_terms(g, x, Elements(shaft_tilt=c))["shaft_tilt"]
+    np.testing.assert_allclose(term, hand, rtol=0, atol=1e-13 * np.max(np.abs(hand)))
 
 
 @pytest.mark.parametrize("one", [Elements(central_EI=[np.inf, 300.0]), Elements(lateral_GJ=[80.0, np.inf, np.inf,

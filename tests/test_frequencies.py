@@ -119,7 +119,7 @@ def test_a_designs_mass_model_is_its_urdfs():
         h4 = h4pin.load(params)
         MP, CF, CI = fr.pack_masses_params(params, PAYLOAD)
         np.testing.assert_allclose(MP, fr.pack_masses(h4, PAYLOAD), rtol=0, atol=1e-15)
-        cf, ci = kin._configuration_pack(h4)
+        cf, ci = kin.configuration_pack(h4)
         np.testing.assert_allclose(CF[:156], cf[:156], rtol=0, atol=1e-15)
         np.testing.assert_array_equal(CI[:8], ci[:8])
 

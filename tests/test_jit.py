@@ -37,7 +37,7 @@ def test_configuration_twin_equals_compiled(variant):
     h4 = h4pin.load(variant)
     twin = _jit.interpreted(_compiled.configuration_packed)
     assert twin is not _compiled.configuration_packed and not hasattr(twin, "signatures")
-    floats, ints = kin._configuration_pack(h4)
+    floats, ints = kin.configuration_pack(h4)
     for x in _poses(h4):
         st = kin.state(h4, x)
         args = [np.ascontiguousarray(a, dtype=float) for a in st]

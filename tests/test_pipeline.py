@@ -18,12 +18,11 @@ from conftest import sample_poses
 import h4pin
 from h4pin import ParameterError, PoseError, SingularPoseError, verdicts
 from h4pin.checks import statics
-from h4pin.description.elements import ELEMENTS, FORMS, ILLUSTRATIVE, Elements, Kind
+from h4pin.description.elements import ELEMENTS, ILLUSTRATIVE, Elements
 from h4pin.kinematics import closed_form as geometry
-from h4pin.kinematics import pinocchio as kin_pinocchio
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.stiffness import elements as statics_elements
-from h4pin.stiffness import frequencies, kernel, numpy_backend, packed, pipeline
+from h4pin.stiffness import kernel, numpy_backend, packed, pipeline
 from h4pin.stiffness.api import TERMS, compliance
 from h4pin.stiffness.matrices import from_points
 
@@ -422,7 +421,7 @@ def test_pack_broadcasts_over_robots(proto, sym):
     stacked = {name: np.stack([getattr(g, name) for g in geoms]) for name in packed.SHAPES}
     stacked["bar_clearance"] = np.array([g.bar_clearance for g in geoms])
     G = packed.pack(**stacked)
-    assert G.shape == (3, kernel._SIZE)
+    assert G.shape == (3, packed.G_SIZE)
     for row, h4 in zip(G, (proto, sym, proto), strict=True):
         ref = kernel.prepare(h4.geometry)
         np.testing.assert_array_equal(row, ref.packed)
@@ -498,79 +497,3 @@ def test_element_table(proto):
     np.testing.assert_allclose(beam[:, 1], np.linalg.norm(proto.geometry.C0, axis=1), rtol=1e-15)
     with pytest.raises(ParameterError, match="Elements"):
         kernel.prepare(proto.geometry).with_elements({"ball_radial": 1e-8})
-
-
-@pytest.mark.parametrize("form", range(len(FORMS)), ids=FORMS)
-def test_site_springs_and_form_weights_are_one_compliance(form):
-    """The two compiled readings of a form (the lanes' five invariant weights, the frequencies'
-    rank-one springs) give the same bilinear form w_a^T C w_b on random wrenches and axes."""
-    rng = np.random.default_rng(form)
-    for _ in range(5):
-        e = rng.normal(size=3)
-        e /= np.linalg.norm(e)
-        second = rng.normal(size=3)  # the out-of-plane form's second axis (any, made normal to e)
-        length, c = rng.uniform(0.05, 0.4), rng.uniform(0.5, 2.0)
-        cols, u = np.zeros(4), np.zeros((4, 6))
-        n = pipeline.site_springs(form, c, length, e, second, cols, u)
-        C = (u[:n].T * cols[:n]) @ u[:n]
-        wff, wef, wmm, wem, wx = pipeline._form_weights(form, length)
-        wa, wb = rng.normal(size=6), rng.normal(size=6)
-        if FORMS[form] == "beam_bending_out":  # the lanes read the wrench projected (pipeline._out_of_plane)
-            nn = second - (second @ e) * e
-            nn /= np.linalg.norm(nn)
-            bb = np.cross(e, nn)
-            # the hand-written cantilever in that plane: [[L^3/3, L^2/2], [L^2/2, L]] / EI on (f.n, m.b)
-            hand = c * np.array([[length**3 / 3, length**2 / 2], [length**2 / 2, length]])
-            fold = np.vstack([np.r_[nn, 0, 0, 0], np.r_[0, 0, 0, bb]])
-            np.testing.assert_allclose(C, fold.T @ hand @ fold, rtol=0, atol=1e-14 * np.max(np.abs(C)))
-            wa, wb = (np.r_[(w[:3] @ nn) * nn, (w[3:] @ bb) * bb] for w in (wa, wb))
-        fa, ma, fb, mb = wa[:3], wa[3:], wb[:3], wb[3:]
-        weights = c * (wff * fa @ fb + wef * (e @ fa) * (e @ fb) + wmm * ma @ mb + wem * (e @ ma) * (e @ mb)
-                       + wx * (ma @ np.cross(e, fb) + mb @ np.cross(e, fa)))
-        assert abs(wa @ C @ wb - weights) <= 1e-13 * np.max(np.abs(C)) * np.linalg.norm(wa) * np.linalg.norm(wb)
-
-
-def test_a_new_element_kind_is_one_schema_row(proto):
-    """A kind the library does not define (the base mounts' vertical compliance alone: site
-    ``mount``, form ``force_axial``, axis ``z``) is one :class:`Kind` row, no code: its term in the
-    compiled pipeline equals the statics route's sum_i c_i b_i b_i^T, b_i the z force of leg i on
-    the base per unit load, and a second row (the tips' isotropic compliance) adds its own. The
-    compiled natural frequencies take the same table: a point mass m at D on massless links
-    vibrates at omega^2 the eigenvalues of (m K_tt)^-1, K_tt the translational block of the
-    statics route's compliance (bare K and the two rows' terms); the rows move them by 6e-4."""
-    xs = well_conditioned(proto, sample_poses(proto, 12, seed=5))
-    c = np.array([1e-8, 2e-8, 0.5e-8, 3e-8])
-    vertical = Kind("mount_vertical", 4, "m/N", "mount", "force_axial", "z")
-    tip = Kind("tip_force", 4, "m/N", "tip", "force")
-    kern = kernel.prepare(proto.geometry)
-    table = kernel.element_table([(vertical, c), (tip, 1e-8)], kern.packed)
-    kern_new = kernel.Kernel.from_packed(kern.packed, table)
-    res = kernel.compliance_batch(kern_new, xs, "consistent", terms=True)
-    bare = kernel.compliance_batch(kern, xs, "consistent")
-    want = []
-    for p, x in enumerate(xs):
-        loads = statics_elements.element_loads(proto.geometry, x)
-        base = loads["base"]
-        ref = sum(c[i] * np.outer(base[i, 2], base[i, 2]) for i in range(4))
-        scale = np.max(np.abs(res.K[p]))
-        assert np.max(np.abs(res.terms[p, 4] - ref)) <= 1e-12 * scale
-        # the tip A_i carries the same force as the base mount (the forearm is rigid here)
-        ref_tip = sum(1e-8 * base[i, :3].T @ base[i, :3] for i in range(4))
-        assert np.max(np.abs(res.terms[p, 5] - ref_tip)) <= 1e-12 * scale
-        np.testing.assert_allclose(res.K[p], bare.K[p] + ref + ref_tip, rtol=0, atol=1e-12 * scale)
-        want.append(bare.K[p] + ref + ref_tip)
-    mass = 2.0
-    x = kernel._readonly(np.ascontiguousarray(xs))
-    inter = np.empty((len(x), pipeline.NX))
-    run = kernel._run(kern_new, x, pipeline.CONSISTENT, kernel._empty(len(x), False, False), False, False, inter)
-    freq, counts = np.empty((len(x), frequencies._NS)), np.empty((len(x), 2), dtype=np.int64)
-    frequencies.frequencies_run(x, 0, len(x), run.q, run.status, inter, kern_new.packed, kern_new.elements,
-                                frequencies.pack_masses(proto, h4pin.Payload(mass), link_inertias=False),
-                                *kin_pinocchio._configuration_pack(proto), freq, counts,
-                                frequencies._work(frequencies._NY, frequencies._NS))
-    assert np.all(counts[:, 0] == 3)
-    for p, k in enumerate(want):
-        hand = np.sort(np.sqrt(1.0 / np.linalg.eigvalsh(mass * k[:3, :3])) / (2 * np.pi))
-        without = np.sort(np.sqrt(1.0 / np.linalg.eigvalsh(mass * bare.K[p][:3, :3])) / (2 * np.pi))
-        np.testing.assert_allclose(freq[p, :3], hand, rtol=1e-10)
-        assert np.max(np.abs(without / hand - 1)) > 1e-4  # the rows' terms are seen

@@ -226,3 +226,32 @@ def test_n_matrix_moves_the_anchors_like_a_forearm_twist(proto, poses):
         # Independent size: A_ij lies h off the forearm's axis, so a twist moves it by |twist| h.
         np.testing.assert_allclose(np.linalg.norm(moved.reshape(2, 3), axis=1),
                                    abs(twist[i]) * proto.params.half_width[i], rtol=1e-6)
+
+
+def test_one_pose_fast_path_is_per_robot_and_equals_the_general_path(proto, poses):
+    """The one-pose path (looked up per robot, model and method, stiffness.api._FAST) gives the
+    numbers of the general path (the compiled kernel with its terms, and the numpy reference),
+    each robot its own elements, and its entry goes with its robot."""
+    import gc
+
+    from h4pin.description.elements import ILLUSTRATIVE
+    from h4pin.stiffness import api
+
+    other = proto.with_elements(ILLUSTRATIVE)
+    for robot in (proto, other, proto):
+        for model in ("paper", "consistent"):
+            x = poses[3]
+            fast = compliance(robot, x, model, method="kernel")
+            full = compliance(robot, x, model, method="kernel", terms=True)
+            ref = compliance(robot, x, model, method="closed_form")
+            np.testing.assert_allclose(fast.matrix, full.matrix, rtol=0, atol=1e-14 * np.max(np.abs(full.matrix)))
+            assert np.max(np.abs(fast.matrix - ref.matrix)) <= 1e-12 * np.max(np.abs(ref.matrix))
+            assert fast.elements is (None if robot.elements.off else robot.elements)
+            assert not fast.pose.flags.writeable and fast.status == 0 and set(fast.terms) == set(full.terms)
+    key = (id(other), "paper", "kernel")
+    assert api._FAST[key][2] is other.elements
+    del other, fast, full, ref, robot
+    gc.collect()
+    assert key not in api._FAST
+    with pytest.raises(UnreachablePoseError):  # a refused pose still takes the long way for its error
+        compliance(proto, np.array([0.0, 0.0, -1.2, 0.0]), method="kernel")

@@ -151,7 +151,7 @@ def test_cli_sweep(tmp_path):
 
 
 def test_packed_kernels_equal_the_canonical_route():
-    """sweep._kernels runs the checks of H4Params, geometry_from_params and the packing of
+    """sweep.kernels runs the checks of H4Params, geometry_from_params and the packing of
     kernel.prepare over a design axis: the same validity as params_of (ParameterError) and,
     bit for bit, the same packed vectors as kernel.prepare(geometry_from_params(params_of(row))),
     over the default bounds and wider ones where about a quarter of the designs are invalid."""
@@ -162,7 +162,7 @@ def test_packed_kernels_equal_the_canonical_route():
     n_invalid = 0
     for bounds in (sweep.BOUNDS, wide):
         rows = sweep.designs(sweep.Spec(n_designs=600, seed=5, bounds=bounds))
-        for row, kern in zip(rows, sweep._kernels(rows), strict=True):
+        for row, kern in zip(rows, sweep.kernels(rows), strict=True):
             try:
                 ref = kernel.prepare(geometry_from_params(sweep.params_of(row)))
             except ParameterError:
@@ -172,7 +172,7 @@ def test_packed_kernels_equal_the_canonical_route():
             np.testing.assert_array_equal(kern.packed, ref.packed)
             assert kern.geometry is None and not kern.packed.flags.writeable
     assert 50 < n_invalid < 600
-    assert sweep._kernels(np.array([[0.09, 0.1, 0.2, 1.6, 0.5, 5e3]] * 3)) == [None] * 3  # no valid design
+    assert sweep.kernels(np.array([[0.09, 0.1, 0.2, 1.6, 0.5, 5e3]] * 3)) == [None] * 3  # no valid design
 
 
 def test_designs_are_generated_once(tmp_path, monkeypatch):

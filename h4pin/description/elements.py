@@ -39,25 +39,46 @@ SITE_JOINT, SITE_ARM, SITE_MOUNT, SITE_TIP, SITE_BAR = range(len(SITES))
 #: axis e: isotropic, normal to e or along e, on the force or the couple; a straight
 #: Euler-Bernoulli cantilever along e (bending, given as 1/EI; torsion, 1/GJ) of the element's
 #: length, clamped at its root and loaded at the site's point; ``beam_bending_out``: the same
-#: cantilever bending in one plane only, the one that holds e and the actuator axis u_i (a
-#: forearm's tip moving along u_i, turning about e x u_i).
+#: cantilever bending in one plane only, the one that holds e and the element's second axis n
+#: (its ``normal``: a forearm's tip moving along u_i, turning about e x n). Each form is one
+#: compiled term, :func:`h4pin.stiffness.pipeline.form_part` (its rank-one parts), which the
+#: compliance and the natural frequencies share.
 FORMS = ("force", "force_normal", "force_axial", "couple", "couple_normal", "couple_axial", "beam_bending",
          "beam_torsion", "beam_bending_out")
 (FORM_FORCE, FORM_FORCE_NORMAL, FORM_FORCE_AXIAL, FORM_COUPLE, FORM_COUPLE_NORMAL, FORM_COUPLE_AXIAL,
  FORM_BEAM_BENDING, FORM_BEAM_TORSION, FORM_BEAM_BENDING_OUT) = range(len(FORMS))
-#: Axes: none (isotropic forms), z (the lateral revolutes of an exact robot), u_i (actuator i),
-#: C_k - D (the central-bar segment), B_i - C_k (lateral bar k's arm), A_i - P_i (forearm i),
-#: w_n (bar n).
-AXES = ("none", "z", "actuator", "central", "arm", "forearm", "bar")
-AXIS_NONE, AXIS_Z, AXIS_ACTUATOR, AXIS_CENTRAL, AXIS_ARM, AXIS_FOREARM, AXIS_BAR = range(len(AXES))
+#: Axes (from the element's root to its site's point, for the beams: their length): none
+#: (isotropic forms), z (world), the revolute axis v_k of lateral bar k (z on the exact robots
+#: of the compiled pipeline), u_i (actuator i), C_k - D (the central-bar segment), B_i - C_k
+#: (lateral bar k's arm), A_i - P_i (forearm i), w_n (bar n).
+AXES = ("none", "z", "revolute", "actuator", "central", "arm", "forearm", "bar")
+AXIS_NONE, AXIS_Z, AXIS_REVOLUTE, AXIS_ACTUATOR, AXIS_CENTRAL, AXIS_ARM, AXIS_FOREARM, AXIS_BAR = range(len(AXES))
+#: Where a kind's data sit in an H4 URDF (:mod:`h4pin.description.urdf`), one element each: the
+#: lateral revolute joints k, the bar links n, the actuated joints i, the forearm links i, the
+#: central bar's link (segment k: attribute ``<attr>_<k>``), the link of the lateral bar that holds
+#: leg i (attribute ``<attr>_<i>``). Place -> (what it is, in a message; URDF element; whether one
+#: URDF element holds several elements of a kind, each its own ``<attr>_<n>``).
+PLACES = {"lateral_joint": ("lateral joint", "joint", False), "bar_link": ("bar link", "link", False),
+          "actuated_joint": ("actuated joint", "joint", False), "forearm_link": ("forearm link", "link", False),
+          "central_link": ("central bar link", "link", True), "lateral_link": ("lateral bar link", "link", True)}
+#: The suffixes of the elastic model's virtual joints of one element, per form
+#: (:func:`h4pin.elastic.h4.elastic_model`): a 6-D spring's three prismatic or revolute joints, two
+#: normal to the axis, one along it, a beam's bending revolutes at its two Gauss points about the
+#: two normals, its torsion revolute, its bending out of plane at the two Gauss points.
+ELASTIC_SUFFIXES = {"force": ("_x", "_y", "_z"), "couple": ("_rx", "_ry", "_rz"), "force_normal": ("_a", "_b"),
+                    "couple_normal": ("_a", "_b"), "force_axial": ("",), "couple_axial": ("",),
+                    "beam_bending": ("_bend_1a", "_bend_1b", "_bend_2a", "_bend_2b"), "beam_torsion": ("_torsion",),
+                    "beam_bending_out": ("_1", "_2")}
 
 
 @dataclasses.dataclass(frozen=True)
 class Kind:
-    """One kind of compliant element: the schema row from which the compiled compliance and the
-    compiled natural frequencies take it (:func:`h4pin.stiffness.kernel.element_table`); a kind
-    made of an existing site, form and axis needs no compiled code. (The URDF tags, the numpy
-    statics route and the elastic model's virtual joints are written per kind.)
+    """One kind of compliant element: its schema row. Every path takes a kind from its row alone
+    (no code names a kind): :class:`Elements` (its field, count, unit, plausible range), the URDF
+    writer and reader (``urdf``, ``place``), the compiled compliance and natural frequencies and
+    the numpy statics route (``site``, ``form``, ``axis``, ``normal``, ``series``: a table row,
+    :func:`h4pin.stiffness.kernel.element_table`), the elastic model (``elastic``: its virtual
+    joints, from the form). A kind made of existing sites, forms, axes and places is one row.
 
     Attributes:
         name: the :class:`Elements` field.
@@ -68,6 +89,15 @@ class Kind:
         rigidity: the value is a rigidity (N.m^2, ``inf`` is rigid, off) rather than a
             compliance (0 is off).
         series: identical elements in series per value (a bar's two ball joints: 2).
+        normal: the second axis of ``beam_bending_out`` (:data:`AXES`).
+        urdf: (tag, attribute) of its value in the URDF (``<tag attribute="..."/>``).
+        place: the URDF element that holds it (:data:`PLACES`).
+        elastic: name of element s's virtual joints in the elastic model, ``{s}`` its 1-based
+            index (``{s}`` of a bar: ``ij``), followed by the form's suffixes
+            (:data:`ELASTIC_SUFFIXES`; ``_A``, ``_B``... for elements in series).
+        describe: element s in a message, ``{s}`` as in ``elastic``.
+        plausible: (low, high) plausible range of a value that is on (default: by unit,
+            :data:`h4pin.limits.ELEMENT_RANGES`).
     """
 
     name: str
@@ -77,23 +107,70 @@ class Kind:
     form: str
     axis: str = "none"
     rigidity: bool = False
-    series: float = 1.0
+    series: int = 1
+    normal: str = "none"
+    urdf: tuple[str, str] = ("", "")
+    place: str = ""
+    elastic: str = ""
+    describe: str = ""
+    plausible: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        for value, table in ((self.site, SITES), (self.form, FORMS), (self.axis, AXES), (self.normal, AXES),
+                             (self.place, tuple(PLACES))):
+            if value not in table:
+                raise ParameterError(f"Kind {self.name!r}: {value!r} is none of {table}")
+        if self.plausible is None:
+            from h4pin.limits import ELEMENT_RANGES
+
+            object.__setattr__(self, "plausible", ELEMENT_RANGES[self.unit])
+
+    @property
+    def off(self) -> float:
+        """The value that switches an element off: ``inf`` (a rigidity) or 0."""
+        return np.inf if self.rigidity else 0.0
+
+    def label(self, s: int) -> str:
+        """Element s's ``{s}`` (1-based; ``ij`` for a bar)."""
+        return f"{s // 2 + 1}{s % 2 + 1}" if self.site == "bar" else str(s + 1)
+
+    def compliance(self, value: Any) -> np.ndarray:
+        """The compliances (``count``,) of values of the kind, times ``series`` (0 where off)."""
+        raw = np.broadcast_to(np.asarray(value, dtype=float), (self.count,))
+        if self.rigidity:
+            with np.errstate(divide="ignore"):
+                raw = np.where(np.isinf(raw), 0.0, 1.0 / raw)
+        return self.series * raw
 
 
+_JOINT = {"site": "joint", "place": "lateral_joint", "describe": "revolute joint of lateral bar {s}"}
+_LEG = {"place": "actuated_joint", "site": "mount"}
 #: The element kinds, in the order of their terms.
 KINDS = (
-    Kind("revolute_radial", 2, "m/N", "joint", "force_normal", "z"),
-    Kind("revolute_axial", 2, "m/N", "joint", "force_axial", "z"),
-    Kind("revolute_tilt", 2, "rad/(N.m)", "joint", "couple_normal", "z"),
-    Kind("ball_radial", 8, "m/N", "bar", "force_axial", "bar", series=2.0),
-    Kind("central_EI", 2, "N.m^2", "joint", "beam_bending", "central", rigidity=True),
-    Kind("central_GJ", 2, "N.m^2", "joint", "beam_torsion", "central", rigidity=True),
-    Kind("lateral_EI", 4, "N.m^2", "arm", "beam_bending", "arm", rigidity=True),
-    Kind("lateral_GJ", 4, "N.m^2", "arm", "beam_torsion", "arm", rigidity=True),
-    Kind("shaft_tilt", 4, "rad/(N.m)", "mount", "couple_normal", "actuator"),
-    Kind("base_translation", 4, "m/N", "mount", "force"),
-    Kind("base_rotation", 4, "rad/(N.m)", "mount", "couple"),
-    Kind("forearm_out_EI", 4, "N.m^2", "tip", "beam_bending_out", "forearm", rigidity=True),
+    Kind("revolute_radial", 2, "m/N", form="force_normal", axis="revolute", urdf=("h4_revolute", "radial"),
+         elastic="lateral_{s}_radial", **_JOINT),
+    Kind("revolute_axial", 2, "m/N", form="force_axial", axis="revolute", urdf=("h4_revolute", "axial"),
+         elastic="lateral_{s}_axial", **_JOINT),
+    Kind("revolute_tilt", 2, "rad/(N.m)", form="couple_normal", axis="revolute", urdf=("h4_revolute", "tilt"),
+         elastic="lateral_{s}_tilt", **_JOINT),
+    Kind("ball_radial", 8, "m/N", "bar", "force_axial", "bar", series=2, urdf=("h4_ball", "radial"), place="bar_link",
+         elastic="bar_{s}_ball", describe="ball joints of bar {s}"),
+    Kind("central_EI", 2, "N.m^2", "joint", "beam_bending", "central", rigidity=True, urdf=("h4_plate_bar", "EI"),
+         place="central_link", elastic="central_{s}", describe="central-bar segment D-C_{s}"),
+    Kind("central_GJ", 2, "N.m^2", "joint", "beam_torsion", "central", rigidity=True, urdf=("h4_plate_bar", "GJ"),
+         place="central_link", elastic="central_{s}", describe="central-bar segment D-C_{s}"),
+    Kind("lateral_EI", 4, "N.m^2", "arm", "beam_bending", "arm", rigidity=True, urdf=("h4_plate_bar", "EI"),
+         place="lateral_link", elastic="arm_{s}", describe="lateral-bar arm to B_{s}"),
+    Kind("lateral_GJ", 4, "N.m^2", "arm", "beam_torsion", "arm", rigidity=True, urdf=("h4_plate_bar", "GJ"),
+         place="lateral_link", elastic="arm_{s}", describe="lateral-bar arm to B_{s}"),
+    Kind("shaft_tilt", 4, "rad/(N.m)", form="couple_normal", axis="actuator", urdf=("h4_actuator", "shaft_tilt"),
+         elastic="shaft_{s}_tilt", describe="actuator shaft of leg {s}", **_LEG),
+    Kind("base_translation", 4, "m/N", form="force", urdf=("h4_base", "translation"), elastic="mount_{s}",
+         describe="base mount of actuator {s}", **_LEG),
+    Kind("base_rotation", 4, "rad/(N.m)", form="couple", urdf=("h4_base", "rotation"), elastic="mount_{s}",
+         describe="base mount of actuator {s}", **_LEG),
+    Kind("forearm_out_EI", 4, "N.m^2", "tip", "beam_bending_out", "forearm", rigidity=True, normal="actuator",
+         urdf=("h4_forearm", "out_EI"), place="forearm_link", elastic="forearm_{s}_out", describe="forearm {s}"),
 )
 ELEMENTS = tuple(k.name for k in KINDS)
 #: Number of elements of each kind: per lateral revolute joint or central-bar segment D-C_k (2),
@@ -105,69 +182,72 @@ RIGIDITIES = tuple(k.name for k in KINDS if k.rigidity)
 UNITS = {k.name: k.unit for k in KINDS}
 
 
+def kinds() -> tuple[Kind, ...]:
+    """The schema's rows now (:data:`KINDS`, read at each call: a test may add a row)."""
+    return KINDS
+
+
+def kind(name: str) -> Kind:
+    """The schema row of kind ``name``."""
+    for k in kinds():
+        if k.name == name:
+            return k
+    raise ParameterError(f"Elements: no element kind {name!r} (kinds: {', '.join(k.name for k in kinds())})")
+
+
 def element_name(name: str, index: int) -> str:
     """Human name of element ``index`` of kind ``name`` (1-based joint, segment, leg or bar)."""
-    if name.startswith("revolute"):
-        return f"revolute joint of lateral bar {index + 1}"
-    if name.startswith("central"):
-        return f"central-bar segment D-C_{index + 1}"
-    if name.startswith("lateral"):
-        return f"lateral-bar arm to B_{index + 1}"
-    if name == "shaft_tilt":
-        return f"actuator shaft of leg {index + 1}"
-    if name.startswith("base"):
-        return f"base mount of actuator {index + 1}"
-    if name.startswith("forearm"):
-        return f"forearm {index + 1}"
-    return f"ball joints of bar {index // 2 + 1}{index % 2 + 1}"
+    k = kind(name)
+    return k.describe.format(s=k.label(index)) if k.describe else f"{name} {k.label(index)}"
 
 
 def is_on(name: str, value: np.ndarray) -> bool:
     """True when some element of kind ``name`` with data ``value`` is not rigid."""
-    return bool(np.any(np.isfinite(value))) if name in RIGIDITIES else bool(np.any(value))
+    return bool(np.any(np.isfinite(value))) if kind(name).rigidity else bool(np.any(value))
+
+
+def _checked(k: Kind, raw: Any, error: type[Exception], prefix: str, owners: list[str] | None) -> np.ndarray:
+    """One kind's data as a read-only float array (:func:`check_elements`)."""
+    from h4pin.inputs import describe, real_array  # h4pin.inputs imports nothing of h4pin.description
+    from h4pin.limits import ImplausibleValueError
+
+    name, n = k.name, k.count
+    what = f"a real number or {n} of them ({k.unit})"
+    if isinstance(raw, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in raw):
+        raise error(f"{prefix}{name} must be {what} (not bools), got {describe(raw)}")
+    arr = real_array(raw, f"{prefix}{name}", error, what)
+    try:
+        arr = np.broadcast_to(arr, (n,)).copy()
+    except ValueError:
+        raise error(f"{prefix}{name} must be {what}, got {describe(raw)}") from None
+    bad = np.isnan(arr) | (arr <= 0.0) if k.rigidity else ~np.isfinite(arr) | (arr < 0.0)
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        owner = owners[i] if owners else element_name(name, i)
+        rule = "> 0; inf switches it off" if k.rigidity else "finite and >= 0; 0 switches it off"
+        raise error(f"{prefix}{owner}: {name} = {float(arr[i])!r} is not physical (must be {rule})")
+    lo, hi = k.plausible
+    odd = (arr != 0.0) & np.isfinite(arr) & ((arr < lo) | (arr > hi))
+    if np.any(odd):
+        i = int(np.argmax(odd))
+        owner = owners[i] if owners else element_name(name, i)
+        raise ImplausibleValueError(f"{prefix}{owner}: {name} = {float(arr[i]):g} {k.unit} is outside the "
+                                    f"plausible range [{lo:g}, {hi:g}] {k.unit} ({k.off:g} switches it off; "
+                                    "h4pin.limits.ELEMENT_RANGES)")
+    arr.setflags(write=False)
+    return arr
 
 
 def check_elements(values: dict[str, Any], error: type[Exception] = ParameterError, where: str = "",
                    owners: dict[str, list[str]] | None = None) -> dict[str, np.ndarray]:
-    """Element data as float arrays (scalars broadcast to :data:`COUNTS`): compliances finite and
-    >= 0, rigidities (:data:`RIGIDITIES`) > 0 (``inf``: rigid); otherwise ``error`` naming the
-    element (and ``owners[name][index]``). A value must be real numbers: bools (``True`` is not
-    a compliance), text, ``None``, complex numbers and masked arrays are refused, naming the field."""
-    from h4pin.inputs import describe, real_array  # h4pin.inputs imports nothing of h4pin.description
-    from h4pin.limits import ELEMENT_RANGES, ImplausibleValueError
-
-    out = {}
+    """Element data as float arrays (scalars broadcast to each kind's count): compliances finite
+    and >= 0, rigidities > 0 (``inf``: rigid), within the kind's plausible range when on;
+    otherwise ``error`` naming the element (and ``owners[name][index]``). A value must be real
+    numbers: bools (``True`` is not a compliance), text, ``None``, complex numbers and masked
+    arrays are refused, naming the field."""
     prefix = f"{where}: " if where else ""
-    for name in ELEMENTS:
-        rigidity = name in RIGIDITIES
-        raw = values.get(name, np.inf if rigidity else 0.0)
-        n = COUNTS[name]
-        what = f"a real number or {n} of them ({UNITS[name]})"
-        if isinstance(raw, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in raw):
-            raise error(f"{prefix}{name} must be {what} (not bools), got {describe(raw)}")
-        arr = real_array(raw, f"{prefix}{name}", error, what)
-        try:
-            arr = np.broadcast_to(arr, (n,)).copy()
-        except ValueError:
-            raise error(f"{prefix}{name} must be {what}, got {describe(raw)}") from None
-        bad = np.isnan(arr) | (arr <= 0.0) if rigidity else ~np.isfinite(arr) | (arr < 0.0)
-        if np.any(bad):
-            k = int(np.argmax(bad))
-            owner = owners[name][k] if owners else element_name(name, k)
-            rule = "> 0; inf switches it off" if rigidity else "finite and >= 0; 0 switches it off"
-            raise error(f"{prefix}{owner}: {name} = {float(arr[k])!r} is not physical (must be {rule})")
-        lo, hi = ELEMENT_RANGES[UNITS[name]]
-        odd = (arr != 0.0) & np.isfinite(arr) & ((arr < lo) | (arr > hi))
-        if np.any(odd):
-            k = int(np.argmax(odd))
-            owner = owners[name][k] if owners else element_name(name, k)
-            off = "inf" if rigidity else "0"
-            raise ImplausibleValueError(f"{prefix}{owner}: {name} = {float(arr[k]):g} {UNITS[name]} is outside the "
-                                        f"plausible range [{lo:g}, {hi:g}] {UNITS[name]} ({off} switches it off; "
-                                        "h4pin.limits.ELEMENT_RANGES)")
-        arr.setflags(write=False)
-        out[name] = arr
-    return out
+    return {k.name: _checked(k, values.get(k.name, k.off), error, prefix, owners[k.name] if owners else None)
+            for k in kinds()}
 
 
 @dataclasses.dataclass(frozen=True, eq=False, init=False)
@@ -208,23 +288,22 @@ class Elements:
     def __init__(self, *args: Any, **values: Any) -> None:
         if args:
             raise ParameterError(f"Elements takes its values by name (Elements(ball_radial=2e-8), kinds: "
-                                 f"{', '.join(ELEMENTS)}), got {len(args)} positional argument(s)")
-        unknown = [n for n in values if n not in ELEMENTS]
-        if unknown:
-            raise ParameterError(f"Elements: no element kind {unknown[0]!r} (kinds: {', '.join(ELEMENTS)})")
-        for k in KINDS:
-            object.__setattr__(self, k.name, values.get(k.name, np.inf if k.rigidity else 0.0))
+                                 f"{', '.join(k.name for k in kinds())}), got {len(args)} positional argument(s)")
+        for name in values:
+            kind(name)  # an unknown kind is refused, naming the kinds
+        for k in kinds():
+            object.__setattr__(self, k.name, values.get(k.name, k.off))
         self.__post_init__()
 
     def __reduce__(self) -> tuple[Any, ...]:
         """Unpickled (and deep-copied) through the constructor: checked like new ones."""
-        return (_elements, ({n: np.array(getattr(self, n)) for n in ELEMENTS},))
+        return (_elements, ({k.name: np.array(getattr(self, k.name)) for k in kinds()},))
 
     def __post_init__(self) -> None:
-        checked = check_elements({n: getattr(self, n) for n in ELEMENTS})
+        checked = check_elements({k.name: getattr(self, k.name) for k in kinds()})
         for name, value in checked.items():
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "_on", frozenset(n for n in ELEMENTS if is_on(n, checked[n])))
+        object.__setattr__(self, "_on", frozenset(n for n, v in checked.items() if is_on(n, v)))
 
     def on(self, name: str) -> bool:
         """True when some element of kind ``name`` is switched on."""
@@ -237,7 +316,11 @@ class Elements:
 
     def allclose(self, other: Elements, rtol: float = 1e-15) -> bool:
         """Every element equal to ``other``'s within ``rtol`` (relative; ``inf`` equals ``inf``)."""
-        return all(np.allclose(getattr(self, n), getattr(other, n), rtol=rtol, atol=0.0) for n in ELEMENTS)
+        return all(np.allclose(getattr(self, k.name), getattr(other, k.name), rtol=rtol, atol=0.0) for k in kinds())
+
+    def kinds_on(self) -> tuple[Kind, ...]:
+        """The schema rows of the kinds that are on, in the order of their terms."""
+        return tuple(k for k in kinds() if k.name in self._on)
 
 
 def _elements(values: dict[str, Any]) -> Elements:
@@ -260,5 +343,5 @@ ILLUSTRATIVE = Elements(revolute_radial=1e-8, revolute_axial=1e-8, revolute_tilt
                         forearm_out_EI=70e9 * 1.6e-8)
 
 
-__all__ = ["AXES", "COUNTS", "ELEMENTS", "FORMS", "ILLUSTRATIVE", "KINDS", "RIGIDITIES", "SITES", "UNITS", "Elements",
-           "Kind", "check_elements", "element_name", "is_on"]
+__all__ = ["AXES", "COUNTS", "ELASTIC_SUFFIXES", "ELEMENTS", "FORMS", "ILLUSTRATIVE", "KINDS", "PLACES", "RIGIDITIES",
+           "SITES", "UNITS", "Elements", "Kind", "check_elements", "element_name", "is_on", "kind", "kinds"]

@@ -24,10 +24,10 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from h4pin.description.elements import ELEMENTS, RIGIDITIES, Elements, check_elements
+from h4pin.description.elements import PLACES, Elements, check_elements, kinds
 from h4pin.description.geometry import POINT_TOL, H4Geometry, check_springs, params_from_geometry
 from h4pin.description.params import PER_LEG, SPRINGS, H4Params
-from h4pin.description.urdf import SPRING_ELEMENTS, URDFExtras, parse
+from h4pin.description.urdf import URDFExtras, element_field, parse
 from h4pin.errors import MalformedURDFError, ParameterError
 
 #: Frames every H4 URDF has (the optional P_i, A_i, B_i are checked when present).
@@ -151,64 +151,43 @@ class _DataReader:
 
     def _elements(self, extras: URDFExtras, lateral: list[int], bar_links: list[str], act: list[int],
                   central: int, leg_lat: np.ndarray) -> Elements:
-        """The optional elements' data (<h4_revolute> in the lateral joints, <h4_ball> in the bar
-        links, <h4_plate_bar> in the plate links, shaft_tilt of <h4_actuator> and <h4_base> in the
-        actuated joints, out_EI of <h4_forearm> in the forearm links); a missing element or
-        attribute is off."""
+        """The optional elements' data, each schema row's (:data:`h4pin.description.elements.KINDS`:
+        its tag and attribute in the URDF element of its place); a missing element or attribute
+        is off, a datum in a URDF element that holds no element of its kind is refused."""
         joints = [self.model.names[j] for j in lateral]
         actuated = [self.model.names[j] for j in act]
-        forearms = [extras.joint_child.get(name, "") for name in actuated]
-        central_link = extras.joint_child.get(self.model.names[central], "")
         lateral_links = [extras.joint_child.get(name, "") for name in joints]
-        # <h4_plate_bar> EI_n/GJ_n: n is C_n on the central bar, leg n (B_n) on a lateral bar.
-        allowed = {central_link: {1, 2}} | {link: {int(i) + 1 for i in np.flatnonzero(leg_lat == k)}
-                                            for k, link in enumerate(lateral_links)}
+        holders = {"lateral_joint": joints, "bar_link": bar_links, "actuated_joint": actuated,
+                   "forearm_link": [extras.joint_child.get(name, "") for name in actuated],
+                   "central_link": [extras.joint_child.get(self.model.names[central], "")] * 8,
+                   "lateral_link": [lateral_links[leg_lat[i]] for i in range(4)]}
+        expected: dict[str, dict[str, str]] = {}  # field -> owner -> place: where each datum may sit
+        for k in kinds():
+            for s in range(k.count):
+                expected.setdefault(element_field(k, s), {})[holders[k.place][s]] = k.place
         for owner, data in extras.springs.items():
             for field in data:
-                if field.startswith("plate_"):
-                    n = int(field[-1])
-                    if n not in allowed.get(owner, set()):
-                        what = {central_link: "central bar"}.get(owner, "lateral bar" if owner in allowed else "link")
-                        raise self._err(f"{what} link '{owner}': <h4_plate_bar {field[6:]}> names no beam of it "
-                                        f"(allowed: {sorted(allowed.get(owner, set())) or 'none'})")
-        # the other elements only where they belong
-        places = {"revolute": (set(joints), "a lateral revolute joint"), "ball": (set(bar_links), "a bar link"),
-                  "shaft": (set(actuated), "an actuated joint"), "base": (set(actuated), "an actuated joint"),
-                  "forearm": (set(forearms), "a forearm link")}
-        source = {field: (tag, attr) for tag, (_, fields) in SPRING_ELEMENTS.items() for attr, field in fields.items()}
-        for owner, data in extras.springs.items():
-            for field in data:
-                if (field in ELEMENTS and (field not in RIGIDITIES or field.startswith("forearm"))
-                        and owner not in places[field.split("_")[0]][0]):
-                    tag, attr = source[field]
-                    raise self._err(f"<{tag} {attr}> sits in '{owner}', which is not "
-                                    f"{places[field.split('_')[0]][1]} (the element it describes)")
+                if field in expected and owner not in expected[field]:
+                    self._misplaced(field, owner, expected, holders)
         owners, values = {}, {}
-        for name in ELEMENTS:
-            rigid = np.inf if name in RIGIDITIES else 0.0
-            if name.startswith("revolute"):
-                attr = name.split("_")[1]
-                keys = [(j, name) for j in joints]
-                owners[name] = [f"lateral joint '{j}' (<h4_revolute {attr}>)" for j in joints]
-            elif name == "ball_radial":
-                keys = [(b, name) for b in bar_links]
-                owners[name] = [f"bar link '{b}' (<h4_ball radial>)" for b in bar_links]
-            elif name == "forearm_out_EI":
-                keys = [(f, name) for f in forearms]
-                owners[name] = [f"forearm link '{f}' (<h4_forearm out_EI>)" for f in forearms]
-            elif name in RIGIDITIES:
-                q = name.split("_")[1]
-                if name.startswith("central"):
-                    keys = [(central_link, f"plate_{q}_{k + 1}") for k in range(2)]
-                else:
-                    keys = [(lateral_links[leg_lat[i]], f"plate_{q}_{i + 1}") for i in range(4)]
-                owners[name] = [f"{name.split('_')[0]} bar link '{link}' (<h4_plate_bar {f[6:]}>)" for link, f in keys]
-            else:
-                tag, attr = ("h4_actuator", "shaft_tilt") if name == "shaft_tilt" else ("h4_base", name.split("_")[1])
-                keys = [(j, name) for j in actuated]
-                owners[name] = [f"actuated joint '{j}' (<{tag} {attr}>)" for j in actuated]
-            values[name] = [extras.springs.get(key, {}).get(field, rigid) for key, field in keys]
+        for k in kinds():
+            fields = [element_field(k, s) for s in range(k.count)]
+            keys = holders[k.place][:k.count]
+            owners[k.name] = [f"{PLACES[k.place][0]} '{o}' ({f})" for o, f in zip(keys, fields, strict=True)]
+            values[k.name] = [extras.springs.get(o, {}).get(f, k.off) for o, f in zip(keys, fields, strict=True)]
         return Elements(**check_elements(values, MalformedURDFError, self.source, owners))
+
+    def _misplaced(self, field: str, owner: str, expected: dict[str, dict[str, str]],
+                   holders: dict[str, list[str]]) -> None:
+        """Refuse element datum ``field`` in URDF element ``owner``, which holds none of its kind."""
+        places = set(expected[field].values())
+        if any(PLACES[p][2] for p in places):  # an indexed attribute: the number names no element of it
+            what = next((PLACES[p][0] for p, names in holders.items() if PLACES[p][2] and owner in names), "link")
+            allowed = sorted(int(f.rsplit("_", 1)[1][:-1]) for f, o in expected.items()
+                             if f.startswith(field.rsplit("_", 1)[0] + "_") and owner in o)
+            raise self._err(f"{what} '{owner}': {field} names no beam of it (allowed: {allowed or 'none'})")
+        what = " or ".join(sorted({("an " if PLACES[p][0][0] in "aeiou" else "a ") + PLACES[p][0] for p in places}))
+        raise self._err(f"{field} sits in '{owner}', which is not {what} (the element it describes)")
 
 
 class _Reader(_DataReader):

@@ -45,17 +45,15 @@ from __future__ import annotations
 import dataclasses
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from h4pin.description.elements import PLACES, Elements, Kind, kinds
 from h4pin.description.geometry import ACTUATOR_LIMITS, LATERAL_LIMITS
 from h4pin.description.params import LEG_LATERAL, H4Params
 from h4pin.errors import MalformedURDFError
 from h4pin.files import write_text
-
-if TYPE_CHECKING:
-    from h4pin.description.elements import Elements
 
 FORMAT_VERSION = "2"
 RHO_ALUMINIUM = 2700.0  # kg/m^3
@@ -192,14 +190,23 @@ def _frame(name: str, parent: str, xyz: np.ndarray) -> str:
     return f'  <link name="{name}"/>\n' + _joint(f"{name}_frame", "fixed", parent, name, xyz)
 
 
-def _plate_bar(elements: Elements | None, family: str, indices: Any) -> str:
-    """``<h4_plate_bar EI_n= GJ_n=/>`` of the beams ``indices`` (0-based; n = index + 1) of a plate
-    link that are not rigid; empty when none is."""
-    if elements is None:
-        return ""
-    attrs = [f'{q}_{n + 1}="{_num(getattr(elements, f"{family}_{q}")[n])}"' for n in indices for q in ("EI", "GJ")
-             if np.isfinite(getattr(elements, f"{family}_{q}")[n])]
-    return f"<h4_plate_bar {' '.join(attrs)}/>" if attrs else ""
+def _element_data(elements: Elements | None, place: str, indices: Any, tags: dict[str, dict[str, str]] | None = None
+                  ) -> str:
+    """The data tags of a URDF element that holds ``place``'s (:data:`h4pin.description.elements.PLACES`)
+    elements ``indices`` (0-based): ``<tag attr="..."/>`` of each schema row's value that is on
+    (``attr_n``, n = index + 1, where the place holds several), merged into ``tags`` (tag ->
+    attribute -> text, e.g. a spring tag's own attributes)."""
+    tags = {} if tags is None else tags
+    for k in () if elements is None else elements.kinds_on():
+        if k.place != place:
+            continue
+        tag, attr = k.urdf
+        for s in indices:
+            value = getattr(elements, k.name)[s]
+            if value != k.off:
+                tags.setdefault(tag, {})[f"{attr}_{s + 1}" if PLACES[place][2] else attr] = _num(value)
+    return "\n    ".join("<" + " ".join([tag, *(f'{a}="{v}"' for a, v in attrs.items())]) + "/>"
+                          for tag, attrs in tags.items())
 
 
 def _forearm(p: H4Params, i: int) -> _Body:
@@ -315,16 +322,10 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
         n = leg_names(i + 1)
         h, r = p.half_width[i], p.r[i]
         parts.append(_frame(n["P"], "base_link", p.P[:, i]))
-        out_ei = "" if elements is None or np.isinf(elements.forearm_out_EI[i]) else \
-            f' out_EI="{_num(elements.forearm_out_EI[i])}"'
-        spring = (f'<h4_forearm E="{_num(p.E[i])}" I="{_num(p.I[i])}" G="{_num(p.G[i])}" I0="{_num(p.I0[i])}" '
-                  f'stressed_fraction="{_num(p.forearm_stressed_fraction[i])}"{out_ei}/>')
-        parts.append(_forearm(p, i).xml(n["forearm"], "forearm", spring))
-        actuator = f'<h4_actuator kc="{_num(p.kc[i])}"/>'
-        if elements is not None:
-            actuator = (f'<h4_actuator kc="{_num(p.kc[i])}" shaft_tilt="{_num(elements.shaft_tilt[i])}"/>\n    '
-                        f'<h4_base translation="{_num(elements.base_translation[i])}" '
-                        f'rotation="{_num(elements.base_rotation[i])}"/>')
+        spring = {"h4_forearm": {"E": _num(p.E[i]), "I": _num(p.I[i]), "G": _num(p.G[i]), "I0": _num(p.I0[i]),
+                                 "stressed_fraction": _num(p.forearm_stressed_fraction[i])}}
+        parts.append(_forearm(p, i).xml(n["forearm"], "forearm", _element_data(elements, "forearm_link", [i], spring)))
+        actuator = _element_data(elements, "actuated_joint", [i], {"h4_actuator": {"kc": _num(p.kc[i])}})
         parts.append(_joint(n["joint"], "revolute", "base_link", n["forearm"], p.P[:, i], u[i], ACTUATOR_LIMITS,
                             actuator))
         parts.append(_frame(n["A"], n["forearm"], r * a[i]))
@@ -335,24 +336,20 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
             parts.append(_frame(b["A"], n["forearm"], anchor))
             parts.append(_cross(p).xml(b["cross"], "joint"))
             parts.append(_joint(b["u1"], "revolute", n["forearm"], b["cross"], anchor, u[i], (-np.pi, np.pi)))
-            bar_data = f'<h4_bar Sb="{_num(p.Sb[nb])}" Eb="{_num(p.Eb[nb])}"/>'
-            if elements is not None:
-                bar_data += f'\n    <h4_ball radial="{_num(elements.ball_radial[nb])}"/>'
-            parts.append(_bar(p, nb).xml(b["bar"], "bar", bar_data))
+            bar_data = {"h4_bar": {"Sb": _num(p.Sb[nb]), "Eb": _num(p.Eb[nb])}}
+            parts.append(_bar(p, nb).xml(b["bar"], "bar", _element_data(elements, "bar_link", [nb], bar_data)))
             parts.append(_joint(b["u2"], "revolute", b["cross"], b["bar"], np.zeros(3), a[i], (-np.pi, np.pi)))
             parts.append(_frame(b["end"], b["bar"], np.array([0.0, 0.0, -p.l[nb]])))
 
-    parts.append(_central(p).xml("central_bar", "plate", _plate_bar(elements, "central", range(2))))
+    parts.append(_central(p).xml("central_bar", "plate", _element_data(elements, "central_link", range(2))))
     parts.append(_joint("plate", "floating", "base_link", "central_bar", np.zeros(3)))
     parts.append(_frame("D", "central_bar", np.zeros(3)))
     bij = p.plate_ball_centres()
     for k in range(2):
         n = lateral_names(k + 1)
         parts.append(_lateral(p, k, bij).xml(n["link"], "plate",
-                                             _plate_bar(elements, "lateral", np.flatnonzero(LEG_LATERAL == k))))
-        joint_data = "" if elements is None else (
-            f'<h4_revolute radial="{_num(elements.revolute_radial[k])}" axial="{_num(elements.revolute_axial[k])}" '
-            f'tilt="{_num(elements.revolute_tilt[k])}"/>')
+                                             _element_data(elements, "lateral_link", np.flatnonzero(LEG_LATERAL == k))))
+        joint_data = _element_data(elements, "lateral_joint", [k])
         parts.append(_joint(n["joint"], "revolute", "central_bar", n["link"], p.DC[:, k], np.array([0.0, 0.0, 1.0]),
                             LATERAL_LIMITS, joint_data))
         parts.append(_frame(n["C"], n["link"], np.zeros(3)))
@@ -388,20 +385,32 @@ def to_urdf(params: H4Params, name: str = "h4", elements: Elements | None = None
     return "\n".join([*header, marker, *parts, *closures, "</robot>", ""])
 
 
-#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field, or the
-#: :class:`h4pin.description.elements.Elements` field for the optional elements h4_revolute, h4_ball).
+#: Spring data elements: tag -> (where it sits, its attributes -> the H4Params field). The
+#: optional elements' tags are their schema rows' (:func:`data_tags`).
 SPRING_ELEMENTS = {
     "h4_actuator": ("joint", {"kc": "kc"}),
     "h4_forearm": ("link", {"E": "E", "I": "I", "G": "G", "I0": "I0",
-                            "stressed_fraction": "forearm_stressed_fraction", "out_EI": "forearm_out_EI"}),
+                            "stressed_fraction": "forearm_stressed_fraction"}),
     "h4_bar": ("link", {"Sb": "Sb", "Eb": "Eb"}),
-    "h4_revolute": ("joint", {"radial": "revolute_radial", "axial": "revolute_axial", "tilt": "revolute_tilt"}),
-    "h4_ball": ("link", {"radial": "ball_radial"}),
-    "h4_base": ("joint", {"translation": "base_translation", "rotation": "base_rotation"}),
-    "h4_plate_bar": ("link", {f"{q}_{n}": f"plate_{q}_{n}" for q in ("EI", "GJ") for n in range(1, 5)}),
 }
-#: Optional attribute of ``<h4_actuator>`` (the shaft's tilt compliance, :mod:`h4pin.description.elements`).
-SPRING_ELEMENTS["h4_actuator"][1]["shaft_tilt"] = "shaft_tilt"
+
+
+def element_field(kind: Kind, s: int) -> str:
+    """The key under which :func:`parse` reads element s of ``kind`` (:attr:`URDFExtras.springs`):
+    ``"<tag attr>"``, or ``"<tag attr_n>"`` (n = s + 1) where its place holds several."""
+    tag, attr = kind.urdf
+    return f"<{tag} {attr}_{s + 1}>" if PLACES[kind.place][2] else f"<{tag} {attr}>"
+
+
+def data_tags() -> dict[str, tuple[str, dict[str, str]]]:
+    """Every data tag a URDF may hold: tag -> (``joint`` or ``link``, attribute -> field), the
+    springs' (:data:`SPRING_ELEMENTS`) and each schema row's (:func:`element_field`)."""
+    out = {tag: (where, dict(fields)) for tag, (where, fields) in SPRING_ELEMENTS.items()}
+    for k in kinds():
+        fields = out.setdefault(k.urdf[0], (PLACES[k.place][1], {}))[1]
+        for s in range(k.count):
+            fields[element_field(k, s)[len(k.urdf[0]) + 2:-1]] = element_field(k, s)
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -567,7 +576,7 @@ def parse(text: str, where: str = "URDF") -> URDFExtras:
             sides += [link, xyz]
         closures.append(Closure(name, *sides))
     springs: dict[str, dict[str, float]] = {}
-    for tag, (kind, fields) in SPRING_ELEMENTS.items():
+    for tag, (kind, fields) in data_tags().items():
         other = "link" if kind == "joint" else "joint"
         for elem in root.findall(other):
             if elem.find(tag) is not None:

@@ -43,13 +43,14 @@ import dataclasses
 import math
 import threading
 import weakref
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from h4pin.description.elements import ELASTIC_SUFFIXES, Kind
 from h4pin.elastic import engine
 from h4pin.elastic.engine import FrameOutput, Insertion, JointOutput, Output, VirtualJoint
 from h4pin.kinematics import pinocchio as kin
@@ -65,31 +66,59 @@ def _normals(axis: np.ndarray) -> np.ndarray:
     return np.stack([e1, np.cross(axis, e1)])
 
 
-def _stiff(compliance: float) -> float:
-    """Stiffness of a compliance (``inf`` for 0: the joint is left out)."""
-    return 1.0 / compliance if compliance > 0 else math.inf
-
-
-def _beam(prefix: str, root: np.ndarray, tip: np.ndarray, ei: float, gj: float) -> list[VirtualJoint]:
-    """A cantilever root -> tip (clamped at root): 4 bending revolutes at the Gauss points, 1 torsion."""
-    vec = tip - root
-    length = float(np.linalg.norm(vec))
+def _element_joints(kind: Kind, s: int, c: float, point: np.ndarray, vec: np.ndarray, normal: np.ndarray
+                    ) -> list[VirtualJoint]:
+    """The virtual joints of element s of a schema row (its compliance c, the row's ``series``
+    included), in its form (:data:`h4pin.description.elements.ELASTIC_SUFFIXES`): at its site's
+    ``point``, its axis ``vec`` from its root to that point (a beam's length), its second axis
+    ``normal``. A 6-D spring: three prismatic or revolute joints along or about x, y, z; normal to
+    or along the axis: one joint along or about each normal, or the axis; a beam: torsion, a
+    revolute about the axis, ``L/(GJ)``; bending, revolutes about the normals (out of plane:
+    about axis x normal) at the two Gauss points ``L/2 -+ L/(2 sqrt 3)`` from the root, ``L/(2
+    EI)`` each, which gives the Euler-Bernoulli cantilever's tip compliance exactly (the
+    two-point Gauss rule integrates ``(L - x)^2`` exactly). Elements in series: one joint each."""
+    form, length = kind.form, float(np.linalg.norm(vec))
     e = vec / length
-    out = [VirtualJoint(f"{prefix}_bend_{g + 1}{'ab'[a]}", "revolute", n, root + x * vec, 2.0 * ei / length)
-           for g, x in enumerate(_GAUSS) for a, n in enumerate(_normals(e))]
-    out.append(VirtualJoint(f"{prefix}_torsion", "revolute", e, root, gj / length))
+    root = point - vec
+    normals = _normals(e)
+    if form in ("force", "couple"):
+        parts = [(d, point, c) for d in np.eye(3)]
+    elif form.endswith("_normal"):
+        parts = [(n, point, c) for n in normals]
+    elif form.endswith("_axial"):
+        parts = [(e, point, c)]
+    elif form == "beam_torsion":
+        parts = [(e, root, c * length)]
+    else:  # bending about the normals (out of plane: about e x normal) at the Gauss points
+        about = normals if form == "beam_bending" else [np.cross(e, normal)]
+        parts = [(n, root + x * vec, 0.5 * c * length) for x in _GAUSS for n in about]
+    joint = "prismatic" if form.startswith("force") else "revolute"
+    name = kind.elastic.format(s=kind.label(s))
+    chain = [f"_{'AB'[r]}" if kind.series > 1 else "" for r in range(kind.series)]
+    return [VirtualJoint(f"{name}{suffix}{tail}", joint, axis, at, kind.series / comp)
+            for suffix, (axis, at, comp) in zip(ELASTIC_SUFFIXES[form], parts, strict=True) for tail in chain]
+
+
+def _elements(h4, at: Callable[[str], np.ndarray], ends: list[np.ndarray]) -> dict[str, list[list[VirtualJoint]]]:
+    """The virtual joints of the robot's elements that are on, per site and element, from their
+    schema rows (the model's neutral configuration: ``at(frame)`` a frame's position there,
+    ``ends`` the bars' plate ends)."""
+    g = h4.geometry
+    z = np.array([0.0, 0.0, 1.0])
+    d = at("D")
+    c = [at(f"C_{k + 1}") for k in range(2)]
+    b = [0.5 * (at(f"B_{i + 1}1") + at(f"B_{i + 1}2")) for i in range(4)]
+    points = {"joint": c, "arm": b, "mount": list(g.P), "tip": list(g.A0_leg), "bar": ends}
+    axes = {"none": [z] * 8, "z": [z] * 8, "revolute": list(g.v), "actuator": list(g.u),
+            "central": [ck - d for ck in c], "arm": [b[i] - c[int(g.leg_lat[i])] for i in range(4)],
+            "forearm": [g.A0_leg[i] - g.P[i] for i in range(4)], "bar": [ends[n] - g.A0[n] for n in range(8)]}
+    out: dict[str, list[list[VirtualJoint]]] = {site: [[] for _ in points[site]] for site in points}
+    for k in h4.elements.kinds_on():
+        comp = k.compliance(getattr(h4.elements, k.name))
+        for s in np.flatnonzero(comp):
+            out[k.site][s] += _element_joints(k, int(s), float(comp[s]), points[k.site][s], axes[k.axis][s],
+                                              axes[k.normal][s])
     return out
-
-
-def _out_of_plane(prefix: str, root: np.ndarray, tip: np.ndarray, normal: np.ndarray, ei: float
-                  ) -> list[VirtualJoint]:
-    """A cantilever root -> tip bending only in the plane of its axis and ``normal``: 2 revolutes
-    about axis x normal at the Gauss points (none when ``ei`` is infinite)."""
-    vec = tip - root
-    length = float(np.linalg.norm(vec))
-    b = np.cross(vec / length, normal)
-    return [VirtualJoint(f"{prefix}_{g + 1}", "revolute", b / np.linalg.norm(b), root + x * vec, 2.0 * ei / length)
-            for g, x in enumerate(_GAUSS)]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -190,7 +219,7 @@ def elastic_model(h4) -> ElasticH4:
     from h4pin.robot import H4
 
     check_instance(h4, H4, "h4", "an h4pin.H4 (from h4pin.load)")  # the door (issue 30)
-    m, g, el, ix = h4.model, h4.geometry, h4.elements, h4.index
+    m, g, ix = h4.model, h4.geometry, h4.index
     d = m.createData()
     pin.framesForwardKinematics(m, d, pin.neutral(m))
 
@@ -206,52 +235,34 @@ def elastic_model(h4) -> ElasticH4:
     c_tors = phi * g.r / (s["G"] * s["I0"])
     c_tens = g.l / (s["Sb"] * s["Eb"])
     cms = h4.constraint_models
+    ends = [(d.oMi[cm.joint1_id] * cm.joint1_placement).translation.copy() for cm in cms]
+    extra = _elements(h4, at, ends)
     insertions = []
     for i in range(4):
         act, p, u = h4.actuated_joint_names[i], g.P[i], g.u[i]
-        mount = [VirtualJoint(f"mount_{i + 1}_{a}", "prismatic", e, p, _stiff(el.base_translation[i]))
-                 for a, e in zip("xyz", np.eye(3), strict=True)]
-        mount += [VirtualJoint(f"mount_{i + 1}_r{a}", "revolute", e, p, _stiff(el.base_rotation[i]))
-                  for a, e in zip("xyz", np.eye(3), strict=True)]
-        mount += [VirtualJoint(f"shaft_{i + 1}_tilt_{'ab'[a]}", "revolute", n, p, _stiff(el.shaft_tilt[i]))
-                  for a, n in enumerate(_normals(u))]
-        insertions.append(Insertion("universe", tuple(mount), children=(act,)))
+        insertions.append(Insertion("universe", tuple(extra["mount"][i]), children=(act,)))
         tip = g.A0_leg[i]
         forearm = (VirtualJoint(f"actuator_{i + 1}_elastic", "revolute", u, p, 1.0 / c_act[i]),
                    VirtualJoint(f"forearm_{i + 1}_torsion", "revolute", tip - p, tip, 1.0 / c_tors[i]),
-                   *_out_of_plane(f"forearm_{i + 1}_out", p, tip, u, el.forearm_out_EI[i]))
+                   *extra["tip"][i])
         universal = tuple(m.names[m.parents[cms[2 * i + j].joint1_id]] for j in range(2))
         insertions.append(Insertion(act, forearm, children=universal,
                                     frames=frames(f"A_{i + 1}", f"A_{i + 1}1", f"A_{i + 1}2")))
     for n, cm in enumerate(cms):
-        name = f"bar_{n // 2 + 1}{n % 2 + 1}"
-        end = (d.oMi[cm.joint1_id] * cm.joint1_placement).translation
-        w = end - g.A0[n]
-        ball = _stiff(el.ball_radial[n])
-        bar = (VirtualJoint(f"{name}_ball_A", "prismatic", w, end, ball),
-               VirtualJoint(f"{name}_tension", "prismatic", w, end, 1.0 / c_tens[n]),
-               VirtualJoint(f"{name}_ball_B", "prismatic", w, end, ball))
+        end = ends[n]
+        bar = (VirtualJoint(f"bar_{n // 2 + 1}{n % 2 + 1}_tension", "prismatic", end - g.A0[n], end, 1.0 / c_tens[n]),
+               *extra["bar"][n])
         on_end = tuple(f.name for fid, f in enumerate(m.frames) if f.parentJoint == cm.joint1_id
                        and np.linalg.norm(d.oMf[fid].translation - end) < 1e-12)
         insertions.append(Insertion(m.names[cm.joint1_id], bar, frames=on_end, closures=((n, 1),)))
     central = m.names[m.parents[ix.jid_lat[0]]]
-    dpt = at("D")
     for k in range(2):
-        lat, c, v = m.names[ix.jid_lat[k]], at(f"C_{k + 1}"), g.v[k]
-        joint = _beam(f"central_{k + 1}", dpt, c, el.central_EI[k], el.central_GJ[k])
-        joint += [VirtualJoint(f"lateral_{k + 1}_radial_{'ab'[a]}", "prismatic", n, c, _stiff(el.revolute_radial[k]))
-                  for a, n in enumerate(_normals(v))]
-        joint.append(VirtualJoint(f"lateral_{k + 1}_axial", "prismatic", v, c, _stiff(el.revolute_axial[k])))
-        joint += [VirtualJoint(f"lateral_{k + 1}_tilt_{'ab'[a]}", "revolute", n, c, _stiff(el.revolute_tilt[k]))
-                  for a, n in enumerate(_normals(v))]
-        insertions.append(Insertion(central, tuple(joint), children=(lat,)))
+        insertions.append(Insertion(central, tuple(extra["joint"][k]), children=(m.names[ix.jid_lat[k]],)))
     for i in range(4):
         k = int(g.leg_lat[i])
         names = (f"B_{i + 1}1", f"B_{i + 1}2")
-        b = 0.5 * (at(names[0]) + at(names[1]))
-        arm = _beam(f"arm_{i + 1}", at(f"C_{k + 1}"), b, el.lateral_EI[i], el.lateral_GJ[i])
-        insertions.append(Insertion(m.names[ix.jid_lat[k]], tuple(arm), frames=frames(f"B_{i + 1}", *names),
-                                    closures=((2 * i, 2), (2 * i + 1, 2))))
+        insertions.append(Insertion(m.names[ix.jid_lat[k]], tuple(extra["arm"][i]),
+                                    frames=frames(f"B_{i + 1}", *names), closures=((2 * i, 2), (2 * i + 1, 2))))
     model, closures, q_index = engine.insert_joints(m, insertions, cms)
     stiffness = {v.name: float(v.stiffness) for ins in insertions for v in ins.joints if math.isfinite(v.stiffness)}
     outputs = (FrameOutput("D"), *(JointOutput(m.names[ix.jid_lat[k]], float(ix.lat_sign[k])) for k in range(2)))

@@ -30,7 +30,7 @@ from h4pin.errors import ParameterError, SingularPoseError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics.closed_form import PlateState, Points
-from h4pin.lookup import finite_configuration, frame_id, model_configuration  # noqa: F401  (re-exported)
+from h4pin.lookup import FRAME_TYPES, finite_configuration, frame_id, model_configuration  # noqa: F401  (re-exported)
 from h4pin.verdicts import CLOSURE_SINGULAR_COND, raise_for_status
 
 _PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -75,12 +75,12 @@ def assemble(h4, st: PlateState) -> np.ndarray:
     end to the direction of B_ij; the branch closest to the reference).
     """
     q, D, R, omega = (np.ascontiguousarray(a, dtype=float) for a in st)
-    floats, ints = _configuration_pack(h4)
+    floats, ints = configuration_pack(h4)
     fill = _compiled.configuration_packed if CONFIGURATION.ready else _jit.interpreted(_compiled.configuration_packed)
     return fill(h4.index.q_neutral.copy(), q, D, R, omega, floats, ints)
 
 
-def _configuration_pack(h4) -> tuple[np.ndarray, np.ndarray]:
+def configuration_pack(h4) -> tuple[np.ndarray, np.ndarray]:
     """The constants of :func:`h4pin.kinematics._compiled.configuration_packed`, packed once per
     robot (a read-only cache keyed by the robot, outside it)."""
     packed = _PACKS.get(h4)
@@ -248,5 +248,9 @@ def frame_position(h4, name: str, q: np.ndarray | None = None, data: pin.Data | 
     return d.oMf[h4.frames[name]].translation.copy()
 
 
-__all__ = ["Kinematics", "as_configuration", "assemble", "closure_residuals", "configuration", "frame_position",
-           "gravity_torques", "jacobian", "kinematics", "passive_map", "potential_energy", "state"]
+#: The name h4pin.studies.atlas calls it by, until it uses the public one.
+_configuration_pack = configuration_pack
+
+__all__ = ["FRAME_TYPES", "Kinematics", "as_configuration", "assemble", "closure_residuals", "configuration",
+           "configuration_pack", "frame_id", "frame_position", "gravity_torques", "jacobian", "kinematics",
+           "passive_map", "potential_energy", "state"]

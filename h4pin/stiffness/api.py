@@ -34,13 +34,14 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
+import weakref
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
 
 from h4pin import limits
-from h4pin.description.elements import ELEMENTS, Elements
+from h4pin.description.elements import Elements
 from h4pin.errors import LoadError, ParameterError
 from h4pin.inputs import check_choice, check_flag, check_instance, describe, real_array
 from h4pin.kinematics import closed_form as cf
@@ -61,7 +62,7 @@ _BATCH_CHUNK = 8192
 _F64 = np.dtype(np.float64)
 
 __all__ = ["BACKENDS", "METHODS", "MODELS", "ON_ERRORS", "R_CONSISTENT", "R_PAPER", "SINGULAR_COND", "TERMS",
-           "Compliance", "Matrices", "Raw", "as_load", "compliance", "matrices_at", "n_matrix"]
+           "Compliance", "Matrices", "Raw", "as_load", "check_options", "compliance", "matrices_at", "n_matrix"]
 
 
 class LazyTerms(Mapping):
@@ -225,7 +226,7 @@ def matrices_at(h4, pose: np.ndarray) -> Matrices:
     return from_kinematics(kin.kinematics(h4, pose))
 
 
-def _check_options(model: str, on_error: str, method: str) -> None:
+def check_options(model: str, on_error: str, method: str) -> None:
     """The options of :func:`compliance`: each a ``str`` among its names, else a :class:`ParameterError`."""
     check_choice(model, MODELS, "model")
     check_choice(on_error, ON_ERRORS, "on_error")
@@ -265,7 +266,7 @@ def _backend(h4, method: str) -> Callable[..., Raw]:
 
 def _names(active: Elements | None) -> tuple[str, ...]:
     """The terms of a result: eq. 30's four, then one per element kind on."""
-    return TERMS + (() if active is None else tuple(n for n in ELEMENTS if active.on(n)))
+    return TERMS + (() if active is None else tuple(k.name for k in active.kinds_on()))
 
 
 def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements | bool | None = None,
@@ -299,6 +300,20 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
             complex numbers and masked arrays are refused), or not finite with ``on_error="raise"``.
         UnreachablePoseError, SingularPoseError: as ``on_error`` says.
     """
+    if elements is None and terms is None and type(model) is str and type(method) is str and type(on_error) is str \
+            and on_error == "raise" and type(pose) is np.ndarray and pose.shape == (4,) and pose.dtype is _F64:
+        # The usual call: one pose of the robot's own elements, through the one-pose entry of the
+        # compiled pipeline; its robot-dependent part looked up once per (robot, model, method).
+        fast = _FAST.get((id(h4), model, method))
+        if fast is None:
+            fast = _fast(h4, model, method)
+        if fast:
+            x = pose.copy()
+            x.setflags(write=False)
+            K, q, cond, status, _ = kernel.one(fast[0], x, fast[1])
+            if status == OK:
+                return Compliance._one(K, LazyTerms(_terms_of, h4, x, model, method, fast[2]), x, q, model, cond,
+                                       fast[2])
     # The door (issue 30): the usual call passes on identity tests alone (a few tens of ns);
     # anything else goes through _check_call, which accepts subclasses and numpy's str and bool.
     if not (type(h4) is H4 and type(model) is str and model in MODELS and type(on_error) is str
@@ -325,6 +340,30 @@ def compliance(h4, pose: np.ndarray, model: str = "paper", *, elements: Elements
                                                else dict(zip(_names(active), T, strict=True)))
             return Compliance._one(K, parts, x, q, model, cond, active)
     return _compliance(h4, pose, model, on_error, method, bool(terms), active)
+
+
+#: The one-pose compiled path per (id of a robot, model, method): (kernel, model code, elements),
+#: or () where it does not apply (a toleranced robot, method="closed_form"...). Filled at first use
+#: once the compiled pipeline is ready (before, "auto" takes the numpy reference); an entry goes
+#: with its robot (the robot is immutable: nothing else can make it stale).
+_FAST: dict[tuple[int, Any, Any], tuple] = {}
+
+
+def _fast(h4: Any, model: Any, method: Any) -> tuple:
+    """The entry of :data:`_FAST` for the arguments of :func:`compliance` (``()``: the general path)."""
+    if type(h4) is not H4:
+        return ()  # the door's (a robot of another type is not cached)
+    ideal = h4.geometry.ideal
+    if method == "auto" and ideal and not kernel.ONE.ready:
+        return ()  # not cached: the pipeline may be ready at the next call
+    entry: tuple = ()
+    if model in MODELS and method in ("auto", "kernel") and ideal:
+        active = _elements_of(h4, None)
+        entry = (kernel.for_geometry(h4.geometry, active), MODELS.index(model), active)
+    key = (id(h4), model, method)
+    if _FAST.setdefault(key, entry) is entry:
+        weakref.finalize(h4, _FAST.pop, key, None)
+    return _FAST[key]
 
 
 def _terms_of(h4, x: np.ndarray, model: str, method: str, active: Elements | None) -> Mapping[str, np.ndarray]:

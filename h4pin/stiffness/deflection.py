@@ -15,7 +15,7 @@ import pinocchio as pin
 from h4pin.kinematics import closed_form as geometry
 from h4pin.kinematics import pinocchio as kin
 from h4pin.kinematics.closed_form import PlateState
-from h4pin.stiffness.api import _check_options, as_load, compliance, matrices_at
+from h4pin.stiffness.api import as_load, check_options, compliance, matrices_at
 from h4pin.stiffness.matrices import R_CONSISTENT, R_PAPER
 
 
@@ -32,7 +32,7 @@ def deflection(h4, pose: np.ndarray, load: np.ndarray, model: str = "consistent"
         h4pin.ParameterError: a load that is not a finite F (3,) or Gamma_ext (8,).
         UnreachablePoseError, SingularPoseError: as :func:`h4pin.compliance`.
     """
-    _check_options(model, "raise", "auto")
+    check_options(model, "raise", "auto")
     x = geometry.as_pose(pose)
     g = as_load(load)
     dtp = compliance(h4, x, model).matrix @ g  # the robot's compliance, elements included

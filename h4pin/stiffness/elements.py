@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from h4pin.description.elements import ELEMENTS, Elements
+from h4pin.description.elements import KINDS, Elements, kinds
 from h4pin.description.geometry import H4Geometry
 from h4pin.kinematics import closed_form as geometry
 from h4pin.kinematics.closed_form import normal_pair, skew
@@ -93,29 +93,22 @@ def beam_compliance(axis: np.ndarray, length: float, ei: float, gj: float) -> tu
 
 
 def element_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
-    """Loads of the elements per unit Gamma_ext (world frame, SI per unit load).
+    """Loads of the elements' sites per unit Gamma_ext (world frame, SI per unit load).
 
-    * ``revolute_radial`` (4, 8): joint k's force along two unit vectors normal to v_k (rows
-      2k, 2k + 1); ``revolute_axial`` (2, 8) along v_k; ``revolute_tilt`` (4, 8): joint k's
-      couple about the two normals; ``ball_radial`` (8, 8): each bar's tension (the bar's two
-      ball joints carry it).
     * ``central`` (2, 6, 8): the wrench [force, couple about C_k] the lateral bar k and the joint
-      torque t_k put on the tip C_k of the central-bar segment D-C_k (the same force and its
-      moment about D at the root section, the segment being clamped at D where the load applies).
+      torque t_k put on the tip C_k of the central-bar segment D-C_k (the joint site: the revolute
+      joint carries it too, its couple about v_k apart).
     * ``lateral`` (4, 6, 8): the wrench [force, couple about B_i] bars i1, i2 put on the tip B_i
       of lateral bar k's arm C_k-B_i (clamped at C_k).
     * ``base`` (4, 6, 8): the wrench [force, couple about P_i] of leg i on the base: the pulls of
-      bars i1, i2 on the forearm at A_ij; ``shaft_tilt`` (8, 8): its couple about the two unit
-      normals to u_i (rows 2i, 2i + 1).
+      bars i1, i2 on the forearm at A_ij (the actuator's shaft and mount).
     * ``tip`` (4, 6, 8): the wrench [force, couple about A_i] bars i1, i2 put on the tip A_i of
       forearm i (the forearm clamped at P_i; A_i midway between A_i1 and A_i2).
+    * ``bars`` (8, 8): each bar's tension; ``w`` (8, 3) the bars' unit directions; ``axis``
+      (2, 3) the lateral revolutes' axes v_k.
     """
     p = plate_loads(g, pose)
     pts, w, f = p["points"], p["w"], p["bars"]
-    normals = [normal_pair(v) for v in p["axis"]]
-    radial = np.concatenate([normals[k].T @ p["force"][k] for k in range(2)])
-    axial = np.stack([p["axis"][k] @ p["force"][k] for k in range(2)])
-    tilt = np.concatenate([normals[k].T @ p["moment"][k] for k in range(2)])
     central = np.zeros((2, 6, 8))
     for k in range(2):
         central[k, :3] = -p["force"][k]
@@ -134,24 +127,22 @@ def element_loads(g: H4Geometry, pose: np.ndarray) -> dict[str, np.ndarray]:
         base[i, 3:] += np.cross(aij[n] - pts.P[i], pulls[n], axis=0)
         tip[i, :3] += pulls[n]
         tip[i, 3:] += np.cross(aij[n] - pts.A[i], pulls[n], axis=0)
-    shaft = np.concatenate([normal_pair(g.u[i]).T @ base[i, 3:] for i in range(4)])
-    return {"revolute_radial": radial, "revolute_axial": axial, "revolute_tilt": tilt, "ball_radial": f,
-            "central": central, "lateral": lateral, "base": base, "shaft_tilt": shaft, "tip": tip}
+    return {"central": central, "lateral": lateral, "base": base, "tip": tip, "bars": f, "w": w, "axis": p["axis"],
+            "points": pts}
 
 
 def spring_compliances(elements: Elements) -> dict[str, np.ndarray]:
-    """Compliance of every scalar spring of :func:`element_loads` (SI): radial and tilt two
-    springs per joint, the ball joints two in series per bar, the shaft two per actuator."""
-    return {"revolute_radial": np.repeat(elements.revolute_radial, 2),
-            "revolute_axial": elements.revolute_axial,
-            "revolute_tilt": np.repeat(elements.revolute_tilt, 2),
-            "ball_radial": 2.0 * elements.ball_radial,
-            "shaft_tilt": np.repeat(elements.shaft_tilt, 2)}
+    """Compliance of every scalar spring of the kinds whose form is made of equal scalar springs
+    (a joint's radial and tilt: two springs per element; a bar's ball joints: in series), SI."""
+    springs = {"force_normal": 2, "force_axial": 1, "couple_normal": 2, "couple_axial": 1}
+    return {k.name: np.repeat(k.compliance(getattr(elements, k.name)), springs[k.form])
+            for k in kinds() if k.form in springs}
 
 
-#: Beam kinds: rigidity field -> (beam family, part of :func:`beam_compliance`: 0 bending, 1 torsion).
-BEAMS = {"central_EI": ("central", 0), "central_GJ": ("central", 1), "lateral_EI": ("lateral", 0),
-         "lateral_GJ": ("lateral", 1)}
+#: Beam kinds of the central-bar segments and the lateral arms: rigidity field -> (beam family
+#: of :func:`element_loads`, part of :func:`beam_compliance`: 0 bending, 1 torsion).
+BEAMS = {k.name: ({"central": "central", "arm": "lateral"}[k.axis], ("beam_bending", "beam_torsion").index(k.form))
+         for k in KINDS if k.axis in ("central", "arm") and k.form in ("beam_bending", "beam_torsion")}
 
 
 def out_of_plane_compliance(axis: np.ndarray, normal: np.ndarray, length: float, ei: float) -> np.ndarray:
@@ -183,45 +174,76 @@ def beam_axes(g: H4Geometry) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def _beam_matrix(name: str, elements: Elements, index: int, axis: np.ndarray, length: float) -> np.ndarray:
+def beam_matrix(name: str, elements: Elements, index: int, axis: np.ndarray, length: float) -> np.ndarray:
+    """The (6, 6) tip compliance of beam ``index`` of the beam kind ``name`` (:data:`BEAMS`)."""
     fam, part = BEAMS[name]
-    ei, gj = getattr(elements, f"{fam}_EI")[index], getattr(elements, f"{fam}_GJ")[index]
-    return beam_compliance(axis, length, ei, gj)[part]
+    rigidity = getattr(elements, name)[index]
+    return beam_compliance(axis, length, *((rigidity, np.inf) if part == 0 else (np.inf, rigidity)))[part]
+
+
+#: The name h4pin.checks.elements calls it by, until it uses the public one.
+_beam_matrix = beam_matrix
+
+
+def form_compliance(form: str, e: np.ndarray, n: np.ndarray, length: float) -> np.ndarray:
+    """The (6, 6) compliance on a wrench [force, couple] of an element of unit compliance in its
+    form (:data:`h4pin.description.elements.FORMS`), axis e, second axis n and length (the numpy
+    reading of each form, apart from the compiled :func:`h4pin.stiffness.pipeline.form_part`)."""
+    out = np.zeros((6, 6))
+    ee = np.outer(e, e)
+    block = {"force": np.eye(3), "force_normal": np.eye(3) - ee, "force_axial": ee}
+    if form in block:
+        out[:3, :3] = block[form]
+    elif form.startswith("couple"):
+        out[3:, 3:] = block[form.replace("couple", "force")]
+    elif form == "beam_bending_out":
+        out = out_of_plane_compliance(e, n, length, 1.0)
+    else:
+        out = beam_compliance(e, length, *((1.0, np.inf) if form == "beam_bending" else (np.inf, 1.0)))[
+            form == "beam_torsion"]
+    return out
+
+
+def _site_axes(g: H4Geometry, pts, loads: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each axis of :data:`h4pin.description.elements.AXES` per element (world, from the element's
+    root to its site's point: a beam's length)."""
+    z = np.tile([0.0, 0.0, 1.0], (8, 1))
+    return {"none": z, "z": z, "revolute": loads["axis"], "actuator": np.asarray(g.u), "central": pts.C - pts.D,
+            "arm": pts.B - pts.C[g.leg_lat], "forearm": pts.A - pts.P, "bar": loads["w"]}
 
 
 def element_terms(g: H4Geometry, pose: np.ndarray, elements: Elements) -> dict[str, np.ndarray]:
-    """Compliance term (8, 8) of each element kind that is on, SI: ``sum_s c_s g_s g_s^T`` over
-    its scalar springs, ``sum_b W_b^T C_b W_b`` over its beams or 6-D mounts (W_b the (6, 8)
-    wrench per unit load, C_b the (6, 6) tip or mount compliance)."""
+    """Compliance term (8, 8) of each element kind that is on, SI: ``sum_s W_s^T C_s W_s`` over
+    its elements, W_s the (6, 8) wrench its site carries per unit load (:data:`SITE_LOADS`) and
+    C_s its compliance in its form (:func:`form_compliance`) times its value."""
     loads = element_loads(g, pose)
-    comp = spring_compliances(elements)
+    axes = _site_axes(g, loads["points"], loads)
     out = {}
-    pts = geometry.assembled_points(g, pose)
-    for name in ELEMENTS:
-        if not elements.on(name):
-            continue
-        if name in comp:
-            out[name] = (loads[name].T * comp[name]) @ loads[name]
-        elif name in BEAMS:
-            fam = BEAMS[name][0]
-            vec = (pts.C - pts.D) if fam == "central" else (pts.B - pts.C[g.leg_lat])
-            term = np.zeros((8, 8))
-            for index, wrench in enumerate(loads[fam]):
-                length = float(np.linalg.norm(vec[index]))
-                term += wrench.T @ _beam_matrix(name, elements, index, vec[index] / length, length) @ wrench
-            out[name] = term
-        elif name == "forearm_out_EI":  # forearm i: P_i -> A_i, out of its plane (along u_i)
-            term = np.zeros((8, 8))
-            for i, wrench in enumerate(loads["tip"]):
-                vec = pts.A[i] - pts.P[i]
-                length = float(np.linalg.norm(vec))
-                c6 = out_of_plane_compliance(vec / length, g.u[i], length, elements.forearm_out_EI[i])
-                term += wrench.T @ c6 @ wrench
-            out[name] = term
-        else:  # base: isotropic translation on the force, rotation on the couple
-            part = slice(0, 3) if name == "base_translation" else slice(3, 6)
-            c = getattr(elements, name)
-            out[name] = sum(c[i] * loads["base"][i, part].T @ loads["base"][i, part] for i in range(4))
+    for k in elements.kinds_on():
+        wrenches = _site_wrenches(k.site, loads)
+        c = k.compliance(getattr(elements, k.name))
+        term = np.zeros((8, 8))
+        for s in np.flatnonzero(c):
+            vec = axes[k.axis][s]
+            length = float(np.linalg.norm(vec))
+            normal = axes[k.normal][s]
+            c6 = form_compliance(k.form, vec / length, normal / np.linalg.norm(normal), length)
+            term += c[s] * wrenches[s].T @ c6 @ wrenches[s]
+        out[k.name] = term
+    return out
+
+
+#: The loads of :func:`element_loads` that are each site's wrench [force, couple] per unit load.
+SITE_LOADS = {"joint": "central", "arm": "lateral", "mount": "base", "tip": "tip"}
+
+
+def _site_wrenches(site: str, loads: dict[str, np.ndarray]) -> np.ndarray:
+    """(count, 6, 8): the wrench each element of a site carries per unit load; a bar's tension
+    as a force along its unit direction w_n."""
+    if site in SITE_LOADS:
+        return loads[SITE_LOADS[site]]
+    out = np.zeros((8, 6, 8))
+    out[:, :3] = loads["w"][:, :, None] * loads["bars"][:, None, :]
     return out
 
 
@@ -232,7 +254,7 @@ def add_terms(g: H4Geometry, x: np.ndarray, raw, elements: Elements | None):
     the poses whose status is 0, and after eq. 30's four terms when the result has terms."""
     if elements is None or elements.off:
         return raw
-    names = [n for n in ELEMENTS if elements.on(n)]
+    names = [k.name for k in elements.kinds_on()]
     extra = None if raw.terms is None else np.full((len(x), len(names), 8, 8), np.nan)
     for k in np.flatnonzero(raw.status == 0):
         terms = element_terms(g, x[k], elements)
@@ -244,5 +266,5 @@ def add_terms(g: H4Geometry, x: np.ndarray, raw, elements: Elements | None):
     return raw._replace(terms=np.concatenate([raw.terms, extra], axis=1))
 
 
-__all__ = ["BEAMS", "add_terms", "beam_axes", "beam_compliance", "element_loads", "element_terms",
-           "out_of_plane_compliance", "plate_loads", "spring_compliances"]
+__all__ = ["BEAMS", "SITE_LOADS", "add_terms", "beam_axes", "beam_compliance", "beam_matrix", "element_loads",
+           "element_terms", "form_compliance", "out_of_plane_compliance", "plate_loads", "spring_compliances"]

@@ -35,13 +35,13 @@ import pinocchio as pin
 from numba import njit
 
 from h4pin import _jit
-from h4pin.description.elements import FORM_BEAM_BENDING_OUT, SITE_BAR, SITE_MOUNT, SITE_TIP
+from h4pin.description.elements import SITE_BAR, SITE_MOUNT, SITE_TIP
 from h4pin.errors import ParameterError
 from h4pin.kinematics import _compiled
 from h4pin.kinematics import pinocchio as kin
 from h4pin.stiffness import kernel, pipeline
-from h4pin.stiffness.packed import _CBEND, _CCTRL, _CTENS, _CTORS, _P, _U, EL_HEADER, EL_ROW
-from h4pin.stiffness.pipeline import _A, _B, _EA, _GC, _LW, _TV, X_F, X_S, X_Y
+from h4pin.stiffness.packed import EL_HEADER, EL_ROW, G_CBEND, G_CCTRL, G_CTENS, G_CTORS, G_LAT, G_P
+from h4pin.stiffness.pipeline import EA, F_GC, F_TV, S_A, S_B, S_LW, S_ROWS, X_F, X_S, X_Y, XROWS
 
 #: Relative eigenvalue of H (to its largest) at or under which a direction is massless: 16 eps.
 #: The massless directions' eigenvalues are round-off (at most 6.6e-16 of the largest over 80 poses
@@ -154,7 +154,7 @@ def _inertial(mci: tuple) -> np.ndarray:
 
 def pack_masses_params(params: Any, payload: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The mass model (:func:`pack_masses`) and the configuration constants (as
-    :func:`h4pin.kinematics.pinocchio._configuration_pack`) of the robot
+    :func:`h4pin.kinematics.pinocchio.configuration_pack`) of the robot
     :func:`h4pin.description.urdf.to_urdf` writes for an :class:`h4pin.H4Params`, without writing
     or loading it (:func:`h4pin.description.urdf.mass_model`): the design sweep's frequencies.
     Equal to those of ``h4pin.load(params)`` (``tests/test_frequencies.py``)."""
@@ -378,7 +378,7 @@ def _y_layout(EG, sy):
         site, form, count, off = int(EG[base]), int(EG[base + 1]), int(EG[base + 3]), int(EG[base + 4])
         if site == SITE_BAR:
             continue
-        per = pipeline.spring_count(form)
+        per = pipeline.form_count(form)
         st = site  # the site codes joint, arm, mount, tip are 0..3
         for s in range(count):
             if EG[off + 2 * s] == 0.0:
@@ -420,7 +420,7 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # pragma: no cov
     """The natural frequencies (Hz, ascending, NaN past the massive count) into freq of one pose
     x (4,), from the pipeline's q (4,) and intermediates Xrow (:data:`h4pin.stiffness.pipeline.NX`),
     the packed geometry G and element table EG, the mass model MP (:func:`pack_masses`), the
-    configuration constants CF, CI (:func:`h4pin.kinematics.pinocchio._configuration_pack`) and
+    configuration constants CF, CI (:func:`h4pin.kinematics.pinocchio.configuration_pack`) and
     the work arrays W (:func:`_work`). Returns the number of massive directions.
 
     The bodies' twists are linear in y (:func:`_y_layout`): J_b (6 x its y columns) per body,
@@ -448,8 +448,8 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     omega = W[19]
     omega[0] = omega[1] = -th
     alpha, beta = _compiled.universal_packed(q, D, Rz, omega, CF, CI)
-    A = Xrow[X_S + _A:X_S + _A + 24].reshape(8, 3)
-    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
+    A = Xrow[X_S + S_A:X_S + S_A + 24].reshape(8, 3)
+    B = Xrow[X_S + S_B:X_S + S_B + 24].reshape(8, 3)
     v3 = W[20]
     # axes rows: 0-3 u_i, 4-7 A_i, 8-11 e_i (forearm axis), 12-19 a1_n, 20-27 a2_n, 28-29 lateral
     # axes, 30-45 the sites' points (joint k, arm i, mount i, tip i)
@@ -459,11 +459,12 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
         _rotm(b0[12:15], q[i], Rq)
         _mm(Ra, Rq, Rf)
         _mv(Ra, b0[12:15], axes[i])
-        O[i] = b0[9:12]
+        for a in range(3):  # element by element: an array-to-slice copy compiles numba's error formatter
+            O[i, a] = b0[9 + a]
         _spatial(Rf, O[i], b0[15:15 + _INERTIA], M6[i])
         for a in range(3):
             axes[4 + i, a] = 0.5 * (A[2 * i, a] + A[2 * i + 1, a])
-            axes[8 + i, a] = axes[4 + i, a] - G[_P + 3 * i + a]
+            axes[8 + i, a] = axes[4 + i, a] - G[G_P + 3 * i + a]
         axes[8 + i] /= math.sqrt(axes[8 + i, 0] ** 2 + axes[8 + i, 1] ** 2 + axes[8 + i, 2] ** 2)
         for j in range(2):
             n = 2 * i + j
@@ -500,7 +501,8 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     for a in range(3):
         O[20, a] += D[a]
     _spatial(Rp, O[20], bp[15:15 + _INERTIA], M6[20])
-    O[23] = D  # the payload: its spatial inertia in frame D (central-bar axes), at D, turned to the world
+    for a in range(3):  # the payload: its spatial inertia in frame D (central-bar axes), at D, turned to the world
+        O[23, a] = D[a]
     pay = MP[_O_PAY:_O_PAY + 36].reshape(6, 6)
     for a in range(6):
         for b in range(6):
@@ -524,11 +526,11 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True)
 def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
     """The springs' columns of R (y per unit deformation, times sqrt(c)); returns (ny, ns)."""
-    axes, sy, R, comp, us, Xs = W[2], W[4], W[6], W[12], W[13], W[14]
+    axes, sy, R, us, Xs = W[2], W[4], W[6], W[13], W[14]
     Y = Xrow[X_Y:X_Y + 64].reshape(8, 8)
-    S = Xrow[X_S:X_S + pipeline._ROWS].reshape(pipeline._ROWS, 1)
-    A = Xrow[X_S + _A:X_S + _A + 24].reshape(8, 3)
-    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
+    S = Xrow[X_S:X_S + S_ROWS].reshape(S_ROWS, 1)
+    A = Xrow[X_S + S_A:X_S + S_A + 24].reshape(8, 3)
+    B = Xrow[X_S + S_B:X_S + S_B + 24].reshape(8, 3)
     ny, ns = _y_layout(EG, sy)
     R[:ny, :ns] = 0.0
     ball = W[18]
@@ -540,22 +542,22 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
             for n in range(8):
                 ball[n] += EG[off + 2 * n]
     for i in range(4):  # the actuators (forearm rotation phi_i) and the torsions (tau_i)
-        sa = math.sqrt(G[_CCTRL + i] + G[_CBEND + i])
-        so = math.sqrt(G[_CTORS + i])
+        sa = math.sqrt(G[G_CCTRL + i] + G[G_CBEND + i])
+        so = math.sqrt(G[G_CTORS + i])
         for a in range(8):
-            R[a, 2 * i] = sa * Xrow[X_F + _GC + 4 * a + i]
-            R[a, 2 * i + 1] = -so * Xrow[X_F + _TV + 4 * a + i]
+            R[a, 2 * i] = sa * Xrow[X_F + F_GC + 4 * a + i]
+            R[a, 2 * i + 1] = -so * Xrow[X_F + F_TV + 4 * a + i]
         R[8 + 2 * i, 2 * i] = sa
         R[9 + 2 * i, 2 * i + 1] = so
     for n in range(8):  # the bars (tension and ball joints in series)
-        sb = math.sqrt(G[_CTENS + n] + ball[n])
+        sb = math.sqrt(G[G_CTENS + n] + ball[n])
         for a in range(8):
-            R[a, 8 + n] = sb * S[_LW + n, 0] * Y[a, n]
+            R[a, 8 + n] = sb * S[S_LW + n, 0] * Y[a, n]
     t = 16
     for row in range(int(EG[0])):
         base = EL_HEADER + EL_ROW * row
         site, form, axis = int(EG[base]), int(EG[base + 1]), int(EG[base + 2])
-        count, off = int(EG[base + 3]), int(EG[base + 4])
+        count, off, normal = int(EG[base + 3]), int(EG[base + 4]), int(EG[base + 5])
         if site == SITE_BAR:
             continue
         stype = site  # the site codes joint, arm, mount, tip are 0..3 (the rows of sy)
@@ -566,31 +568,37 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
             c, length = EG[off + 2 * s], EG[off + 2 * s + 1]
             if c == 0.0:
                 continue
-            pipeline._element_axis(G, axis, s, 1, S, Xs)
-            e = Xs[_EA:_EA + 3, 0].copy()
-            pipeline._site_point(G, site, s, 0, 1, S, Xs)
-            o = Xs[_EA:_EA + 3, 0].copy()
-            n = e
-            if form == FORM_BEAM_BENDING_OUT:  # its second axis: leg s's actuator axis u_i
-                n = G[_U + 3 * s:_U + 3 * s + 3].copy()
-            k = pipeline.site_springs(form, c, length, e, n, comp, us)
+            for k in range(2):  # the axis into Xs[EA], the second axis into Xs[EA + 3] (one inlined copy)
+                pipeline.element_axis(G, axis if k == 0 else normal, s, 1, S, Xs, EA + 3 * k)
+            e0, e1, e2 = Xs[EA, 0], Xs[EA + 1, 0], Xs[EA + 2, 0]
+            a0, a1, a2, b0, b1, b2 = pipeline.form_frame(pipeline.form_plane(form), e0, e1, e2, Xs[EA + 3, 0],
+                                                         Xs[EA + 4, 0], Xs[EA + 5, 0])
+            pipeline.site_point(G, site, s, 0, 1, S, Xs)
+            o = Xs[EA:EA + 3, 0].copy()
             y0 = sy[stype, s]
-            for p in range(k):
-                sc = math.sqrt(comp[p])
+            for p in range(pipeline.form_count(form)):
+                cp, fe, fa, fb, fw, me, ma, mb, mw = pipeline.form_part(form, p, c, length)
+                sc = math.sqrt(cp)
+                for d in range(3):  # u_p in the world (pipeline.form_part)
+                    w = 1.0 if d == p else 0.0
+                    ve, va, vb = (e0, a0, b0) if d == 0 else ((e1, a1, b1) if d == 1 else (e2, a2, b2))
+                    us[d] = fe * ve + fa * va + fb * vb + fw * w
+                    us[3 + d] = me * ve + ma * va + mb * vb + mw * w
+                u0, u1, u2, u3, u4, u5 = us[0], us[1], us[2], us[3], us[4], us[5]
                 for d in range(6):
-                    R[y0 + d, t] = sc * us[p, d]
+                    R[y0 + d, t] = sc * us[d]
                 for m in range(8):
-                    if not pipeline._site_bars(G, site, s, m):
+                    if not pipeline.site_bars(G, site, s, m):
                         continue
                     pt = A[m] if (site == SITE_MOUNT or site == SITE_TIP) else B[m]
                     fx, fy, fz = B[m, 0] - A[m, 0], B[m, 1] - A[m, 1], B[m, 2] - A[m, 2]
                     mx, my, mz = _cr(pt[0] - o[0], pt[1] - o[1], pt[2] - o[2], fx, fy, fz)
-                    g = sign * sc * (fx * us[p, 0] + fy * us[p, 1] + fz * us[p, 2] + mx * us[p, 3] + my * us[p, 4]
-                                     + mz * us[p, 5])
+                    g = sign * sc * (fx * u0 + fy * u1 + fz * u2 + mx * u3 + my * u4 + mz * u5)
                     for a in range(8):
                         R[a, t] += Y[a, m] * g
                 t += 1
-            axes[30 + 4 * stype + s] = o  # the site's point, for the bodies' twists below
+            for d in range(3):  # the site's point, for the bodies' twists below
+                axes[30 + 4 * stype + s, d] = o[d]
     return ny, ns
 
 
@@ -599,7 +607,7 @@ def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
     """M_y = sum_b J_b^T M6_b J_b: the bodies' twists per unit y coordinate."""
     O, M6, axes, Sinv, sy, My, J, Jc, cols = W[0], W[1], W[2], W[3], W[4], W[5], W[9], W[10], W[11]
     D = x[:3]
-    B = Xrow[X_S + _B:X_S + _B + 24].reshape(8, 3)
+    B = Xrow[X_S + S_B:X_S + S_B + 24].reshape(8, 3)
     My[:ny, :ny] = 0.0
     for b in (20, 23):  # the central bar (at its origin) and the payload (at D): dtp's first six
         _add_body(My, M6[b], J, cols, _site_columns(J, cols, 0, 0, O[b], D))
@@ -612,8 +620,8 @@ def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
         nc = _site_columns(J, cols, nc, sy[0, k], O[b], axes[30 + k])
         _add_body(My, M6[b], J, cols, nc)
     for i in range(4):
-        k = int(G[pipeline._LAT + 2 * i])
-        P = G[_P + 3 * i:_P + 3 * i + 3]
+        k = int(G[G_LAT + 2 * i])
+        P = G[G_P + 3 * i:G_P + 3 * i + 3]
         # the forearm: phi_i and the mount site
         w0, w1, w2 = axes[i, 0], axes[i, 1], axes[i, 2]
         v0, v1, v2 = _cr(w0, w1, w2, O[i, 0] - P[0], O[i, 1] - P[1], O[i, 2] - P[2])
@@ -745,8 +753,8 @@ def _work(ny: int, ns: int) -> tuple:
     return (np.zeros((24, 3)), np.zeros((24, 6, 6)), np.zeros((46, 3)), np.zeros((8, 3, 3)),
             np.full((4, 4), -1, dtype=np.int64), np.zeros((ny, ny)), np.zeros((ny, ns)), np.zeros((ny, ns)),
             np.zeros((ns, ns)), np.zeros((6, 34)), np.zeros((6, 34)), np.zeros(34, dtype=np.int64), np.zeros(4),
-            np.zeros((4, 6)),
-            np.zeros((pipeline._XROWS, 1)), np.zeros((8, 3, 3)),
+            np.zeros(6),
+            np.zeros((XROWS, 1)), np.zeros((8, 3, 3)),
             np.zeros(ns), np.zeros(ns), np.zeros(8), np.zeros(2), np.zeros(3))  # d, e; ball; omega; v3
 
 
@@ -779,16 +787,16 @@ def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bo
     how many frequencies to keep (default: all)."""
     el = None if h4.elements.off else h4.elements
     kern = kernel.for_geometry(h4.geometry, el)
-    x = kernel._readonly(np.ascontiguousarray(poses, dtype=float).reshape(-1, 4))
+    x = kernel.readonly(np.ascontiguousarray(poses, dtype=float).reshape(-1, 4))
     n = len(x)
     inter = np.empty((n, pipeline.NX))
     if n == 1:  # the one-pose entry (no block of lanes)
         _, q, cond, status, _ = kernel.one(kern, x[0], pipeline.CONSISTENT, inter=inter[0])
         q, status = q[None], np.array([status], dtype=np.int8)
     else:
-        res = kernel._run(kern, x, pipeline.CONSISTENT, kernel._empty(n, False, False), False, False, inter)
+        res = kernel.run_poses(kern, x, pipeline.CONSISTENT, kernel.empty_result(n, False, False), False, False, inter)
         q, status = res.q, res.status
-    CF, CI = kin._configuration_pack(h4)
+    CF, CI = kin.configuration_pack(h4)
     width = _NS if count is None else int(count)
     freq = np.empty((n, width))
     counts = np.empty((n, 2), dtype=np.int64)

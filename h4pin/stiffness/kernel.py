@@ -31,16 +31,16 @@ import numba
 import numpy as np
 
 from h4pin import _jit
-from h4pin.description.elements import AXES, FORMS, KINDS, SITES, Elements, Kind
+from h4pin.description.elements import AXES, FORMS, SITES, Elements, Kind
 from h4pin.description.geometry import H4Geometry, forearms, spring_compliances
 from h4pin.errors import ParameterError, PoseError
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.stiffness import pipeline
 from h4pin.stiffness.eq30 import MODELS
 from h4pin.stiffness.packed import (
-    _SIZE,
     EL_HEADER,
     EL_ROW,
+    G_SIZE,
     NO_ELEMENTS,
     NO_J_N,
     NO_TERMS_N,
@@ -113,7 +113,7 @@ def _check(a: dict[str, Any]) -> None:
 
 
 def pack_fields(fields: dict[str, Any]) -> np.ndarray:
-    """The packed vectors (..., _SIZE) of many robots at once, checked as :func:`prepare` checks
+    """The packed vectors (..., G_SIZE) of many robots at once, checked as :func:`prepare` checks
     one: ``fields`` are those of :class:`H4Geometry` with leading robot axes, as
     :func:`h4pin.description.geometry.geometry_arrays` gives them (robots with exact
     parallelograms, as H4Params makes them). ``Kernel.from_packed(G[k])`` is then robot k's kernel."""
@@ -127,32 +127,27 @@ def pack_fields(fields: dict[str, Any]) -> np.ndarray:
 
 def pack_elements(elements: Elements | None, packed: np.ndarray) -> np.ndarray:
     """The element table of the compiled pipeline (:data:`h4pin.stiffness.packed.EL_ROW`) for the
-    kinds of ``elements`` that are on (in :data:`h4pin.description.elements.KINDS` order), with the
-    beam lengths of the packed geometry ``packed``. Read-only; :data:`NO_ELEMENTS` when none is on."""
-    on = [] if elements is None else [k for k in KINDS if elements.on(k.name)]
+    kinds of ``elements`` that are on (in the schema's order), with the beam lengths of the
+    packed geometry ``packed``. Read-only; :data:`NO_ELEMENTS` when none is on."""
+    on = () if elements is None else elements.kinds_on()
     return element_table([(k, getattr(elements, k.name)) for k in on], packed)
 
 
 def element_table(kinds: list[tuple[Kind, Any]], packed: np.ndarray) -> np.ndarray:
     """The element table of (kind, values) pairs: any :class:`h4pin.description.elements.Kind`
-    (a schema row: site, form, axis), values ``kind.count`` compliances, or rigidities when
-    ``kind.rigidity``. This is all the compiled pipeline knows of an element: a new kind is a
-    schema row, not code. Read-only; :data:`NO_ELEMENTS` when ``kinds`` is empty."""
+    (a schema row: site, form, axis, normal), values ``kind.count`` compliances, or rigidities
+    when ``kind.rigidity``. This is all the compiled pipeline knows of an element: a new kind is
+    a schema row, not code. Read-only; :data:`NO_ELEMENTS` when ``kinds`` is empty."""
     if not kinds:
         return NO_ELEMENTS
     lengths = beam_lengths(packed)
     rows, values = [], []
     offset = EL_HEADER + EL_ROW * len(kinds)
     for kind, value in kinds:
-        raw = np.broadcast_to(np.asarray(value, dtype=float), (kind.count,))
-        if kind.rigidity:
-            with np.errstate(divide="ignore"):
-                c = np.where(np.isinf(raw), 0.0, 1.0 / raw)
-        else:
-            c = raw
         length = lengths.get(kind.axis, np.zeros(kind.count))
-        rows.append([SITES.index(kind.site), FORMS.index(kind.form), AXES.index(kind.axis), kind.count, offset])
-        values.append(np.stack([kind.series * c, np.broadcast_to(length, (kind.count,))], axis=1).ravel())
+        rows.append([SITES.index(kind.site), FORMS.index(kind.form), AXES.index(kind.axis), kind.count, offset,
+                     AXES.index(kind.normal)])
+        values.append(np.stack([kind.compliance(value), np.broadcast_to(length, (kind.count,))], axis=1).ravel())
         offset += 2 * kind.count
     table = np.concatenate([[float(len(kinds))], np.ravel(rows), *values]).astype(np.float64)
     table.setflags(write=False)
@@ -184,8 +179,8 @@ class Kernel:
         """The kernel of a vector packed by :func:`pack_fields` (a read-only copy; ``geometry``
         is None) and an element table (:func:`pack_elements`)."""
         packed = np.array(G, dtype=np.float64)
-        if packed.shape != (_SIZE,):
-            raise ParameterError(f"a packed kernel vector has shape ({_SIZE},), got {packed.shape}")
+        if packed.shape != (G_SIZE,):
+            raise ParameterError(f"a packed kernel vector has shape ({G_SIZE},), got {packed.shape}")
         packed.setflags(write=False)
         kern = cls.__new__(cls)
         kern.geometry, kern.packed, kern.elements = None, packed, elements
@@ -292,7 +287,7 @@ def _call(name: str, *args: Any) -> None:
         _ENTRIES[name] = overload.entry_point
 
 
-def _readonly(x: np.ndarray) -> np.ndarray:
+def readonly(x: np.ndarray) -> np.ndarray:
     """A read-only view (one type for every caller: no second compiled version)."""
     if not x.flags.writeable:
         return x
@@ -301,7 +296,7 @@ def _readonly(x: np.ndarray) -> np.ndarray:
     return v
 
 
-def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
+def run_poses(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool, jacobian: bool,
          inter: np.ndarray | None = None) -> KernelResult:
     """The pipeline over all the poses of x (N, 4) C-contiguous float64 into ``res`` (of its size),
     on numba's number of threads: one contiguous run of whole blocks a thread, the calling thread
@@ -312,7 +307,7 @@ def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool,
     n = len(x)
     if not n:
         return res
-    x = _readonly(x)
+    x = readonly(x)
     T = res.terms if terms else NO_TERMS_N
     J = res.J if jacobian else NO_J_N
     args = (kern.packed, kern.elements, code, res.K, res.q, res.condition, res.status, T, terms, J, jacobian,
@@ -332,7 +327,7 @@ def _run(kern: Kernel, x: np.ndarray, code: int, res: KernelResult, terms: bool,
     return res
 
 
-def _empty(n: int, terms: bool, jacobian: bool, kinds: int = 0) -> KernelResult:
+def empty_result(n: int, terms: bool, jacobian: bool, kinds: int = 0) -> KernelResult:
     return KernelResult(np.empty((n, 8, 8)), np.empty((n, 4)), np.empty(n), np.empty(n, dtype=np.int8),
                         np.empty((n, 4 + kinds, 8, 8)) if terms else None, np.empty((n, 4, 4)) if jacobian else None)
 
@@ -371,7 +366,7 @@ def one(kern: Kernel, x: np.ndarray, code: int, terms: bool = False, inter: np.n
     if entry is not None:
         cond, status = entry(x, kern.packed, kern.elements, code, K, q, T, terms, X, inter is not None)
     else:
-        args = (_readonly(x), kern.packed, kern.elements, code, K, q, T, terms, X, inter is not None)
+        args = (readonly(x), kern.packed, kern.elements, code, K, q, T, terms, X, inter is not None)
         cond, status = pipeline.one(*args)
         overload = getattr(pipeline.one, "overloads", {}).get(tuple(numba.typeof(a) for a in args))
         if overload is not None and getattr(overload, "entry_point", None) is not None:
@@ -400,9 +395,9 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     code = _model_code(model)
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
-    res = (_empty(len(x), terms, jacobian, kern.kinds) if out is None
+    res = (empty_result(len(x), terms, jacobian, kern.kinds) if out is None
            else _check_out(out, len(x), terms, jacobian, kern.kinds))
-    return _run(kern, x, code, res, terms, jacobian)
+    return run_poses(kern, x, code, res, terms, jacobian)
 
 
 def compliance_one(g: Any, pose: np.ndarray, model: str = "paper") -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -433,7 +428,7 @@ def iter_compliance(g: Any, poses: np.ndarray | Iterable[np.ndarray], model: str
     for part in parts:
         n = len(part)
         if buf is None or len(buf.K) < n:
-            buf = _empty(max(n, chunk), terms, jacobian, kern.kinds)
+            buf = empty_result(max(n, chunk), terms, jacobian, kern.kinds)
         view = KernelResult(*(None if a is None else a[:n] for a in buf))
         yield start, compliance_batch(kern, part, model, view, terms=terms, jacobian=jacobian)
         start += n
@@ -449,6 +444,9 @@ def threads() -> int:
     """numba's current number of threads for the pipeline."""
     return numba.get_num_threads()
 
+
+#: The names the studies call these by (h4pin.studies.atlas, .sweep, .frequency), until they use the public ones.
+_readonly, _run, _empty = readonly, run_poses, empty_result
 
 _KERNELS: dict[tuple[int, int], Kernel] = {}
 
@@ -475,10 +473,10 @@ def backend(h4, x: np.ndarray, model: str, terms: bool, elements: Elements | Non
     from h4pin.stiffness.eq30 import Raw
 
     kern = for_geometry(h4.geometry, elements)
-    res = _run(kern, x, MODELS.index(model), _empty(len(x), terms, False, kern.kinds), terms, False)
+    res = run_poses(kern, x, MODELS.index(model), empty_result(len(x), terms, False, kern.kinds), terms, False)
     return Raw(res.K, res.terms, res.q, res.condition, res.status)
 
 
 __all__ = ["BATCH", "CHUNK", "ONE", "PARALLEL_FROM", "Kernel", "KernelResult", "backend", "cached", "compliance_batch",
-           "compliance_one", "for_geometry", "iter_compliance", "one", "pack", "pack_elements", "pack_fields",
-           "prepare", "threads"]
+           "compliance_one", "empty_result", "for_geometry", "iter_compliance", "one", "pack", "pack_elements",
+           "pack_fields", "prepare", "readonly", "run_poses", "threads"]

@@ -56,9 +56,9 @@ from numba import njit
 from h4pin.description.elements import (
     AXIS_ACTUATOR,
     AXIS_ARM,
+    AXIS_BAR,
     AXIS_CENTRAL,
     AXIS_FOREARM,
-    AXIS_Z,
     FORM_BEAM_BENDING,
     FORM_BEAM_BENDING_OUT,
     FORM_BEAM_TORSION,
@@ -75,30 +75,30 @@ from h4pin.description.elements import (
     SITE_TIP,
 )
 from h4pin.stiffness.packed import (
-    _BB,
-    _BM,
-    _C0,
-    _CBEND,
-    _CCTRL,
-    _CLEAR,
-    _CTENS,
-    _CTORS,
-    _LAT,
-    _LL,
-    _M,
-    _P,
-    _QHI,
-    _QLO,
-    _R2,
-    _U,
-    _UM,
-    _UV,
-    _UVU,
-    _V,
-    _WHI,
-    _WLO,
     EL_HEADER,
     EL_ROW,
+    G_BB,
+    G_BM,
+    G_C0,
+    G_CBEND,
+    G_CCTRL,
+    G_CLEAR,
+    G_CTENS,
+    G_CTORS,
+    G_LAT,
+    G_LL,
+    G_M,
+    G_P,
+    G_QHI,
+    G_QLO,
+    G_R2,
+    G_U,
+    G_UM,
+    G_UV,
+    G_UVU,
+    G_V,
+    G_WHI,
+    G_WLO,
 )
 from h4pin.verdicts import INTERFERENCE, LIMITS, OK, SINGULAR, SINGULAR_COND, UNREACHABLE
 
@@ -134,6 +134,8 @@ _IA = 122  # (8,) 1 / |w_n|^2
 _Q = 130  # (4,) q_i
 _CK = 134  # (2, 3) c_k = C_k - D
 _ROWS = 140
+#: Rows of the lane scratch that the natural frequencies read in a pose's intermediates (:data:`X_S`).
+S_A, S_B, S_LW, S_ROWS = _A, _B, _LW, _ROWS
 
 # Rows of the factors F of eq. 30 (rows x LANES; :func:`_factors`).
 _GC = 0  # (8, 4) Gc[a, i] = M1^-1 M2 M3
@@ -142,6 +144,8 @@ _TV = 64  # (8, 4) v[a, i] = sum_j d_n Y[a, n]
 _TU = 96  # (8, 4) c_tors_i v[a, i]
 _YS = 128  # (8, 8) c_tens_n l_n^2 Y[a, n]
 _FROWS = 192
+#: Rows of the factors that the natural frequencies read (:data:`X_F`).
+F_GC, F_TV = _GC, _TV
 
 # Rows of the inversion's scratch R (rows x LANES).
 _ZERO = 0  # a zero or non-finite determinant (exactly singular M1)
@@ -155,9 +159,13 @@ _JX, _GB, _RM, _AI, _QI, _HB = 0, 1, 2, 3, 4, 5
 # Rows of the element scratch X (rows x LANES; :func:`_element_kind`).
 _EF = 0  # (4, 3) the force each bar of the site puts on it (w_m)
 _EM = 12  # (4, 3) its moment about the site's point
-_EA = 24  # (3,) the element's axis
-_EX = 27  # (4, 3) axis x force (beam bending)
-_XROWS = 39
+_EA = 24  # (3,) the element's axis (first the site's point)
+_EN = 27  # (3,) its second axis
+_EU = 30  # (6,) the part u_t of its form
+_EB = 36  # (3,) its frame's second normal b
+_EG = 39  # (4,) u_t . w_a per bar a of the site
+#: Rows of the element scratch (:func:`element_axis`, :func:`site_point` write into them).
+EA, XROWS = _EA, 43
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -214,8 +222,8 @@ def _load(poses, p0, nl, lanes, G, S):
     """Poses p0 .. p0 + nl - 1 into the first nl of ``lanes`` lanes, the last one repeated in the
     others (every stage then runs a constant number of lanes, and a lane's results are its own);
     cos and sin of theta, and c_k = C_k - D = Rz(theta) C0_k."""
-    c00, c01, c02 = G[_C0], G[_C0 + 1], G[_C0 + 2]
-    c10, c11, c12 = G[_C0 + 3], G[_C0 + 4], G[_C0 + 5]
+    c00, c01, c02 = G[G_C0], G[G_C0 + 1], G[G_C0 + 2]
+    c10, c11, c12 = G[G_C0 + 3], G[G_C0 + 4], G[G_C0 + 5]
     for l in range(lanes):  # scalar libm calls: this loop is not vectorised
         p = p0 + min(l, nl - 1)
         th = poses[p, 3]
@@ -233,14 +241,14 @@ def _legs(G, nl, S):
     for l in range(nl):
         S[_UNR, l] = 0.0
     for i in range(4):
-        k = int(G[_LAT + 2 * i])
+        k = int(G[G_LAT + 2 * i])
         ck = _CK + 3 * k
-        ox = G[_BM + 3 * i] - G[_P + 3 * i]
-        oy = G[_BM + 3 * i + 1] - G[_P + 3 * i + 1]
-        oz = G[_BM + 3 * i + 2] - G[_P + 3 * i + 2]
-        mx, my, mz = G[_M + 3 * i], G[_M + 3 * i + 1], G[_M + 3 * i + 2]
-        nx, ny, nz = G[_UM + 3 * i], G[_UM + 3 * i + 1], G[_UM + 3 * i + 2]
-        r2l2 = G[_R2 + i] - G[_LL + i] * G[_LL + i]
+        ox = G[G_BM + 3 * i] - G[G_P + 3 * i]
+        oy = G[G_BM + 3 * i + 1] - G[G_P + 3 * i + 1]
+        oz = G[G_BM + 3 * i + 2] - G[G_P + 3 * i + 2]
+        mx, my, mz = G[G_M + 3 * i], G[G_M + 3 * i + 1], G[G_M + 3 * i + 2]
+        nx, ny, nz = G[G_UM + 3 * i], G[G_UM + 3 * i + 1], G[G_UM + 3 * i + 2]
+        r2l2 = G[G_R2 + i] - G[G_LL + i] * G[G_LL + i]
         for l in range(nl):
             ex = S[_X, l] + S[ck, l] + ox
             ey = S[_Y, l] + S[ck + 1, l] + oy
@@ -259,8 +267,8 @@ def _legs(G, nl, S):
         for j in range(2):
             n = 2 * i + j
             for a in range(3):
-                pa, va, wa, ua = G[_P + 3 * i + a], G[_V + 3 * n + a], G[_UV + 3 * n + a], G[_UVU + 3 * n + a]
-                ba = G[_BB + 3 * n + a]
+                pa, va, wa, ua = G[G_P + 3 * i + a], G[G_V + 3 * n + a], G[G_UV + 3 * n + a], G[G_UVU + 3 * n + a]
+                ba = G[G_BB + 3 * n + a]
                 for l in range(nl):
                     cq, sq = S[_CQ + i, l], S[_SQ + i, l]
                     S[_A + 3 * n + a, l] = pa + cq * va + sq * wa + (1.0 - cq) * ua
@@ -273,9 +281,9 @@ def _angles(G, nl, S):
     for i in range(4):
         for l in range(nl):
             S[_Q + i, l] = atan2(S[_SQ + i, l], S[_CQ + i, l])
-    lo0, lo1, lo2, lo3 = G[_QLO], G[_QLO + 1], G[_QLO + 2], G[_QLO + 3]
-    hi0, hi1, hi2, hi3 = G[_QHI], G[_QHI + 1], G[_QHI + 2], G[_QHI + 3]
-    w0, w1, v0, v1 = G[_WLO], G[_WLO + 1], G[_WHI], G[_WHI + 1]
+    lo0, lo1, lo2, lo3 = G[G_QLO], G[G_QLO + 1], G[G_QLO + 2], G[G_QLO + 3]
+    hi0, hi1, hi2, hi3 = G[G_QHI], G[G_QHI + 1], G[G_QHI + 2], G[G_QHI + 3]
+    w0, w1, v0, v1 = G[G_WLO], G[G_WLO + 1], G[G_WHI], G[G_WHI + 1]
     for l in range(nl):
         q0, q1, q2, q3 = S[_Q, l], S[_Q + 1, l], S[_Q + 2, l], S[_Q + 3, l]
         w = -S[_TH, l]
@@ -301,7 +309,7 @@ def _bars(G, nl, S, H):
             S[_AA + n, l] = aa
             S[_IA + n, l] = 1.0 / aa
             S[_LW + n, l] = np.sqrt(aa)
-    c2 = G[_CLEAR] * G[_CLEAR]
+    c2 = G[G_CLEAR] * G[G_CLEAR]
     for l in range(nl):
         H[l] = 0.0
     for n1 in range(6):
@@ -343,9 +351,9 @@ def _matrix(G, nl, S, M, Bk):
     p_n = P_i - A_n, r_i the unit vector A_i -> P_i), and the blocks Jx, G, Rm of the module
     docstring into Bk."""
     for i in range(4):
-        px, py, pz = G[_P + 3 * i], G[_P + 3 * i + 1], G[_P + 3 * i + 2]
-        ux, uy, uz = G[_U + 3 * i], G[_U + 3 * i + 1], G[_U + 3 * i + 2]
-        k = int(G[_LAT + 2 * i])
+        px, py, pz = G[G_P + 3 * i], G[G_P + 3 * i + 1], G[G_P + 3 * i + 2]
+        ux, uy, uz = G[G_U + 3 * i], G[G_U + 3 * i + 1], G[G_U + 3 * i + 2]
+        k = int(G[G_LAT + 2 * i])
         ck = _CK + 3 * k
         for j in range(2):
             n = 2 * i + j
@@ -380,7 +388,7 @@ def _matrix(G, nl, S, M, Bk):
                 qz = pz - S[_A + 3 * n + 2, l]
                 S[_DD + n, l] = (S[_W + 3 * n, l] * (qy * rz - qz * ry) + S[_W + 3 * n + 1, l] * (qz * rx - qx * rz)
                                  + S[_W + 3 * n + 2, l] * (qx * ry - qy * rx))
-        bmx, bmy, bmz = G[_BM + 3 * i], G[_BM + 3 * i + 1], G[_BM + 3 * i + 2]
+        bmx, bmy, bmz = G[G_BM + 3 * i], G[G_BM + 3 * i + 1], G[G_BM + 3 * i + 2]
         for l in range(nl):
             n0, n1 = 6 * i, 6 * i + 3
             wx = 0.5 * (S[_W + n0, l] + S[_W + n1, l])
@@ -510,8 +518,8 @@ def _factors(G, nl, S, Y, F):
     and ``c_tors v_i`` (eq. 23; e_n l_n = d_n), and ``c_tens_n l_n^2 Y[:, n]`` (eq. 27)."""
     for a in range(8):
         for i in range(4):
-            cs = G[_CCTRL + i] + G[_CBEND + i]
-            ct = G[_CTORS + i]
+            cs = G[G_CCTRL + i] + G[G_CBEND + i]
+            ct = G[G_CTORS + i]
             n0, n1 = 2 * i, 2 * i + 1
             for l in range(nl):
                 y0, y1 = Y[a, n0, l], Y[a, n1, l]
@@ -522,26 +530,26 @@ def _factors(G, nl, S, Y, F):
                 F[_TV + 4 * a + i, l] = v
                 F[_TU + 4 * a + i, l] = ct * v
         for n in range(8):
-            cn = G[_CTENS + n]
+            cn = G[G_CTENS + n]
             for l in range(nl):
                 F[_YS + 8 * a + n, l] = cn * S[_AA + n, l] * Y[a, n, l]
 
 
 @njit(**_STAGE)
-def _site_bars(G, site, s, m):
+def site_bars(G, site, s, m):
     """Whether bar m loads element s of a kind whose site is ``site``
     (:data:`h4pin.description.elements.SITES`): the bars of lateral bar s, bar s, or those of leg s."""
     if site == SITE_JOINT:
-        return int(G[_LAT + m]) == s
+        return int(G[G_LAT + m]) == s
     if site == SITE_BAR:
         return m == s
     return m // 2 == s
 
 
 @njit(**_STAGE)
-def _site_point(G, site, s, m, nl, S, X):
-    """The point about which element s's wrench is taken, into rows _EA of X: C_k of lateral bar
-    s (joint), B_i of leg s (arm), P_i (mount), A_i (tip), or bar m's end B_m (bar)."""
+def site_point(G, site, s, m, nl, S, X):
+    """The point about which element s's wrench is taken, into rows :data:`EA` of X: C_k of
+    lateral bar s (joint), B_i of leg s (arm), P_i (mount), A_i (tip), or bar m's end B_m (bar)."""
     if site == SITE_JOINT:
         for d in range(3):
             for l in range(nl):
@@ -549,7 +557,7 @@ def _site_point(G, site, s, m, nl, S, X):
     elif site == SITE_MOUNT:
         for d in range(3):
             for l in range(nl):
-                X[_EA + d, l] = G[_P + 3 * s + d]
+                X[_EA + d, l] = G[G_P + 3 * s + d]
     elif site == SITE_ARM or site == SITE_TIP:
         pt = _B if site == SITE_ARM else _A
         for d in range(3):
@@ -562,78 +570,38 @@ def _site_point(G, site, s, m, nl, S, X):
 
 
 @njit(**_STAGE)
-def _element_axis(G, axis, s, nl, S, X):
-    """Element s's unit axis into rows _EA of X: z, u_i (actuator), C_k - D (central segment),
-    B_i - C_k (lateral arm), A_i - P_i (forearm) or w_n (bar)."""
+def element_axis(G, axis, s, nl, S, X, row):
+    """Element s's unit axis (:data:`h4pin.description.elements.AXES`) into rows ``row`` .. row + 2
+    of X: z (none, z, and the lateral revolutes of the exact robots this pipeline takes), u_i
+    (actuator), C_k - D (central segment), B_i - C_k (lateral arm), A_i - P_i (forearm) or w_n (bar)."""
     for d in range(3):
-        if axis == AXIS_Z:
+        if axis == AXIS_ACTUATOR:
             for l in range(nl):
-                X[_EA + d, l] = 1.0 if d == 2 else 0.0
-        elif axis == AXIS_ACTUATOR:
-            for l in range(nl):
-                X[_EA + d, l] = G[_U + 3 * s + d]
+                X[row + d, l] = G[G_U + 3 * s + d]
         elif axis == AXIS_CENTRAL:
             for l in range(nl):
-                X[_EA + d, l] = S[_CK + 3 * s + d, l]
+                X[row + d, l] = S[_CK + 3 * s + d, l]
         elif axis == AXIS_ARM:
             for l in range(nl):
-                X[_EA + d, l] = G[_BM + 3 * s + d]
+                X[row + d, l] = G[G_BM + 3 * s + d]
         elif axis == AXIS_FOREARM:
             for l in range(nl):
-                X[_EA + d, l] = 0.5 * (S[_A + 6 * s + d, l] + S[_A + 6 * s + 3 + d, l]) - G[_P + 3 * s + d]
-        else:  # AXIS_BAR
+                X[row + d, l] = 0.5 * (S[_A + 6 * s + d, l] + S[_A + 6 * s + 3 + d, l]) - G[G_P + 3 * s + d]
+        elif axis == AXIS_BAR:
             for l in range(nl):
-                X[_EA + d, l] = S[_W + 3 * s + d, l]
+                X[row + d, l] = S[_W + 3 * s + d, l]
+        else:  # AXIS_NONE, AXIS_Z, AXIS_REVOLUTE
+            for l in range(nl):
+                X[row + d, l] = 1.0 if d == 2 else 0.0
     for l in range(nl):
-        ax, ay, az = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
+        ax, ay, az = X[row, l], X[row + 1, l], X[row + 2, l]
         inv = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
-        X[_EA, l], X[_EA + 1, l], X[_EA + 2, l] = ax * inv, ay * inv, az * inv
+        X[row, l], X[row + 1, l], X[row + 2, l] = ax * inv, ay * inv, az * inv
 
 
 @njit(**_STAGE)
-def _form_weights(form, length):
-    """The weights of f.f, (e.f)(e.f), mu.mu, (e.mu)(e.mu) and mu.(e x f) in a form's bilinear
-    form (:data:`h4pin.description.elements.FORMS`); a beam's from the Euler-Bernoulli cantilever
-    of that length (``h4pin.stiffness.elements.beam_compliance``, per unit 1/EI or 1/GJ). A beam
-    bending out of its plane reads, on the wrench :func:`_out_of_plane` makes of it (force along
-    n, couple about b = e x n), the same invariants as the cantilever: f.f = fn fn, mu.mu = mb mb
-    and mu.(e x f) = mb fn."""
-    if form == FORM_FORCE:
-        return 1.0, 0.0, 0.0, 0.0, 0.0
-    if form == FORM_FORCE_NORMAL:
-        return 1.0, -1.0, 0.0, 0.0, 0.0
-    if form == FORM_FORCE_AXIAL:
-        return 0.0, 1.0, 0.0, 0.0, 0.0
-    if form == FORM_COUPLE:
-        return 0.0, 0.0, 1.0, 0.0, 0.0
-    if form == FORM_COUPLE_NORMAL:
-        return 0.0, 0.0, 1.0, -1.0, 0.0
-    if form == FORM_COUPLE_AXIAL:
-        return 0.0, 0.0, 0.0, 1.0, 0.0
-    if form == FORM_BEAM_TORSION:
-        return 0.0, 0.0, 0.0, length, 0.0
-    if form == FORM_BEAM_BENDING_OUT:
-        return length * length * length / 3.0, 0.0, length, 0.0, 0.5 * length * length
-    cube = length * length * length / 3.0  # FORM_BEAM_BENDING
-    return cube, -cube, length, -length, 0.5 * length * length
-
-
-@njit(cache=True, nogil=True)
-def _normals(e):
-    """Two unit vectors n1, n2 normal to the unit e, with n1 x n2 = e."""
-    k = 0
-    if abs(e[1]) < abs(e[k]):
-        k = 1
-    if abs(e[2]) < abs(e[k]):
-        k = 2
-    n1 = np.array(_cross_t(e[0], e[1], e[2], 1.0 if k == 0 else 0.0, 1.0 if k == 1 else 0.0, 1.0 if k == 2 else 0.0))
-    n1 /= math.sqrt(n1[0] ** 2 + n1[1] ** 2 + n1[2] ** 2)
-    return n1, np.array(_cross_t(e[0], e[1], e[2], n1[0], n1[1], n1[2]))
-
-
-@njit(cache=True, nogil=True)
-def spring_count(form):
-    """How many rank-one parts :func:`site_springs` gives an element of this form."""
+def form_count(form):
+    """How many rank-one parts :func:`form_part` gives an element of this form."""
     if form == FORM_FORCE or form == FORM_COUPLE:
         return 3
     if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL or form == FORM_BEAM_BENDING_OUT:
@@ -642,80 +610,62 @@ def spring_count(form):
 
 
 @njit(cache=True, nogil=True)
-def site_springs(form, c, length, e, n, cols, u):
-    """The rank-one parts (c_t, u_t) of an element's compliance C = sum c_t u_t u_t^T in its form
-    (u_t (6,) a twist [translation; rotation] at the site's point, dual to its wrench [force;
-    couple]) into cols (compliances) and u (rows); returns how many. A beam's bending in each
-    plane normal to its axis e: ``L^3/(3EI) (f + 3 m / (2L))^2 + L/(4EI) m^2`` (the cantilever
-    of :func:`h4pin.stiffness.elements.beam_compliance`); out of plane, the same in the plane of
-    e and n only (n the element's second axis, made normal to e; the force along n, the couple
-    about e x n). The same C as :func:`_form_weights`
-    (``tests/test_pipeline.py`` checks every form): that one for the lanes' terms, this one for
-    the natural frequencies (:mod:`h4pin.stiffness.frequencies`), which need the springs."""
-    n1, n2 = _normals(e)
-    rot = form == FORM_COUPLE or form == FORM_COUPLE_NORMAL or form == FORM_COUPLE_AXIAL
-    off = 3 if rot else 0
+def form_part(form, t, c, length):
+    """Part t of an element's compliance in its form (:data:`h4pin.description.elements.FORMS`):
+    ``C = sum_t c_t u_t u_t^T`` over :func:`form_count` parts, u_t (6,) a twist [translation;
+    rotation] at the site's point, dual to its wrench [force; couple], given in the element's
+    frame (e its unit axis, a and b the unit normals of :func:`form_frame`) and the world's:
+    returns ``(c_t, fe, fa, fb, fw, me, ma, mb, mw)`` with ``u_t = [fe e + fa a + fb b + fw x_t;
+    me e + ma a + mb b + mw x_t]`` (x_t world axis t), from the element's compliance c (1/EI,
+    1/GJ for a beam) and length. A beam's bending in the plane of e and a:
+    ``L^3/(3EI) (f.a + 3 m.b / (2L))^2 + L/(4EI) (m.b)^2`` (the cantilever of
+    :func:`h4pin.stiffness.elements.beam_compliance`), then in the plane of e and b (with -a);
+    out of plane (a along the second axis), the first plane only. The one compiled term of a
+    form: the compliance (:func:`_element_kind`) and the natural frequencies
+    (:mod:`h4pin.stiffness.frequencies`) both read it; its numbers do not depend on the pose
+    (scalars, computed once an element, outside the lane loops)."""
     if form == FORM_FORCE or form == FORM_COUPLE:
-        for a in range(3):
-            u[a, :] = 0.0
-            u[a, off + a] = 1.0
-            cols[a] = c
-        return 3
+        rot = 1.0 if form == FORM_COUPLE else 0.0
+        return c, 0.0, 0.0, 0.0, 1.0 - rot, 0.0, 0.0, 0.0, rot
     if form == FORM_FORCE_NORMAL or form == FORM_COUPLE_NORMAL:
-        for a in range(2):
-            u[a, :] = 0.0
-            u[a, off:off + 3] = n1 if a == 0 else n2
-            cols[a] = c
-        return 2
-    if form == FORM_FORCE_AXIAL or form == FORM_COUPLE_AXIAL:
-        u[0, :] = 0.0
-        u[0, off:off + 3] = e
-        cols[0] = c
-        return 1
-    if form == FORM_BEAM_TORSION:
-        u[0, :] = 0.0
-        u[0, 3:] = e
-        cols[0] = c * length
-        return 1
-    k = 1.5 / length
-    if form == FORM_BEAM_BENDING_OUT:
-        d = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
-        m = n - d * e
-        m /= math.sqrt(m[0] ** 2 + m[1] ** 2 + m[2] ** 2)
-        b = np.array(_cross_t(e[0], e[1], e[2], m[0], m[1], m[2]))
-        u[0, :3], u[0, 3:] = m, k * b
-        u[1, :3], u[1, 3:] = 0.0, b
-        cols[0] = c * length ** 3 / 3.0
-        cols[1] = c * length / 4.0
-        return 2
-    u[0, :3], u[0, 3:] = n1, k * n2  # FORM_BEAM_BENDING
-    u[1, :3], u[1, 3:] = 0.0, n2
-    u[2, :3], u[2, 3:] = n2, -k * n1
-    u[3, :3], u[3, 3:] = 0.0, n1
-    cols[0] = cols[2] = c * length ** 3 / 3.0
-    cols[1] = cols[3] = c * length / 4.0
-    return 4
+        rot = 1.0 if form == FORM_COUPLE_NORMAL else 0.0
+        a, b = (1.0, 0.0) if t == 0 else (0.0, 1.0)
+        return c, 0.0, (1.0 - rot) * a, (1.0 - rot) * b, 0.0, 0.0, rot * a, rot * b, 0.0
+    if form == FORM_FORCE_AXIAL:
+        return c, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if form == FORM_COUPLE_AXIAL or form == FORM_BEAM_TORSION:
+        return c * length if form == FORM_BEAM_TORSION else c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0
+    k = 1.5 / length  # beams bending: t = 0, 1 in the plane of e and a; t = 2, 3 in that of e and b
+    f = 1.0 if t % 2 == 0 else 0.0
+    m = k if t % 2 == 0 else 1.0
+    cube = c * length * length * length / 3.0
+    if t < 2:
+        return cube if t == 0 else 0.25 * c * length, 0.0, f, 0.0, 0.0, 0.0, 0.0, m, 0.0
+    return cube if t == 2 else 0.25 * c * length, 0.0, 0.0, f, 0.0, 0.0, -m, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def form_plane(form):
+    """Whether the form's normal a is the element's second axis made normal to e (a beam bending
+    out of its plane), rather than the first of two normals to e (:func:`form_frame`)."""
+    return form == FORM_BEAM_BENDING_OUT
 
 
 @njit(**_STAGE)
-def _out_of_plane(G, s, slots, nl, X):
-    """A beam bending out of its plane (leg s's forearm along e, rows _EA of X): each slot's
-    force replaced by its part along n (u_s made normal to e) and its couple by its part about
-    b = e x n, the only loads that bend it out of plane (:func:`_form_weights`)."""
-    for l in range(nl):
-        ex, ey, ez = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
-        ux, uy, uz = G[_U + 3 * s], G[_U + 3 * s + 1], G[_U + 3 * s + 2]
-        d = ux * ex + uy * ey + uz * ez
-        nx, ny, nz = ux - d * ex, uy - d * ey, uz - d * ez
-        inv = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)
-        nx, ny, nz = nx * inv, ny * inv, nz * inv
-        bx, by, bz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
-        for t in range(slots):
-            fa, ma = _EF + 3 * t, _EM + 3 * t
-            fn = nx * X[fa, l] + ny * X[fa + 1, l] + nz * X[fa + 2, l]
-            mb = bx * X[ma, l] + by * X[ma + 1, l] + bz * X[ma + 2, l]
-            X[fa, l], X[fa + 1, l], X[fa + 2, l] = fn * nx, fn * ny, fn * nz
-            X[ma, l], X[ma + 1, l], X[ma + 2, l] = mb * bx, mb * by, mb * bz
+def form_frame(plane, ex, ey, ez, nx, ny, nz):
+    """The unit normals (a, b) of an element's frame, b = e x a: a = n made normal to e if
+    ``plane`` (:func:`form_plane`), else e x h (h the world axis of e's least component)."""
+    hx = 1.0 if (abs(ex) <= abs(ey) and abs(ex) <= abs(ez)) else 0.0
+    hy = 1.0 if (hx == 0.0 and abs(ey) <= abs(ez)) else 0.0
+    cx, cy, cz = _cross_t(ex, ey, ez, hx, hy, 1.0 - hx - hy)
+    d = nx * ex + ny * ey + nz * ez
+    ax = nx - d * ex if plane else cx
+    ay = ny - d * ey if plane else cy
+    az = nz - d * ez if plane else cz
+    inv = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
+    ax, ay, az = ax * inv, ay * inv, az * inv
+    bx, by, bz = _cross_t(ex, ey, ez, ax, ay, az)
+    return ax, ay, az, bx, by, bz
 
 
 @njit(**_STAGE)
@@ -724,20 +674,19 @@ def _element_kind(G, EG, row, nl, S, X, E):
     :data:`h4pin.stiffness.packed.EL_ROW`) into the upper triangle of E (8, 8, LANES): for each
     element s of the kind, ``E[m, n] += w_m^T C_s w_n`` over the bars m, n that load its site,
     w_m = [f_m, mu_m] bar m's pull (w_m) and its moment about the site's point, C_s the element's
-    compliance in the form of the row, as weights of five invariants (:func:`_form_weights`)."""
+    compliance in the form of the row, ``sum_t c_t u_t u_t^T`` (:func:`form_part`)."""
     base = EL_HEADER + EL_ROW * row
     site, form, axis = int(EG[base]), int(EG[base + 1]), int(EG[base + 2])
-    count, off = int(EG[base + 3]), int(EG[base + 4])
+    count, off, normal = int(EG[base + 3]), int(EG[base + 4]), int(EG[base + 5])
     for s in range(count):
         c, length = EG[off + 2 * s], EG[off + 2 * s + 1]
         if c == 0.0:
             continue
-        wff, wef, wmm, wem, wx = _form_weights(form, length)
         slot = 0
         for m in range(8):  # each bar's force and moment about the site's point
-            if not _site_bars(G, site, s, m):
+            if not site_bars(G, site, s, m):
                 continue
-            _site_point(G, site, s, m, nl, S, X)
+            site_point(G, site, s, m, nl, S, X)
             pt = _A if (site == SITE_MOUNT or site == SITE_TIP) else _B
             for l in range(nl):
                 rx = S[pt + 3 * m, l] - X[_EA, l]
@@ -749,39 +698,40 @@ def _element_kind(G, EG, row, nl, S, X, E):
                 X[_EM + 3 * slot + 1, l] = rz * fx - rx * fz
                 X[_EM + 3 * slot + 2, l] = rx * fy - ry * fx
             slot += 1
-        _element_axis(G, axis, s, nl, S, X)
-        if form == FORM_BEAM_BENDING_OUT:
-            _out_of_plane(G, s, slot, nl, X)
-        for t in range(slot):
-            for l in range(nl):  # e x f_t
-                ex, ey, ez = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
-                fx, fy, fz = X[_EF + 3 * t, l], X[_EF + 3 * t + 1, l], X[_EF + 3 * t + 2, l]
-                X[_EX + 3 * t, l] = ey * fz - ez * fy
-                X[_EX + 3 * t + 1, l] = ez * fx - ex * fz
-                X[_EX + 3 * t + 2, l] = ex * fy - ey * fx
-        ta = 0
-        for m in range(8):
-            if not _site_bars(G, site, s, m):
-                continue
-            tb = ta
-            for n in range(m, 8):
-                if not _site_bars(G, site, s, n):
-                    continue
-                fa, fb, ma, mb = _EF + 3 * ta, _EF + 3 * tb, _EM + 3 * ta, _EM + 3 * tb
-                xa, xb = _EX + 3 * ta, _EX + 3 * tb
+        for k in range(2):  # the axis, then the second axis (one inlined copy of element_axis)
+            element_axis(G, axis if k == 0 else normal, s, nl, S, X, _EA if k == 0 else _EN)
+        plane = form_plane(form)
+        for l in range(nl):  # the element's frame: a into rows _EN (its second axis, spent), b into _EU + 3
+            ax, ay, az, bx, by, bz = form_frame(plane, X[_EA, l], X[_EA + 1, l], X[_EA + 2, l], X[_EN, l],
+                                                X[_EN + 1, l], X[_EN + 2, l])
+            X[_EN, l], X[_EN + 1, l], X[_EN + 2, l], X[_EB, l], X[_EB + 1, l], X[_EB + 2, l] = ax, ay, az, bx, by, bz
+        for t in range(form_count(form)):
+            ct, fe, fa, fb, fw, me, ma, mb, mw = form_part(form, t, c, length)
+            wx, wy, wz = (1.0 if t == 0 else 0.0), (1.0 if t == 1 else 0.0), (1.0 if t == 2 else 0.0)
+            for d in range(3):
+                w = wx if d == 0 else (wy if d == 1 else wz)
+                for l in range(nl):  # u_t in the world
+                    ve, va, vb = X[_EA + d, l], X[_EN + d, l], X[_EB + d, l]
+                    X[_EU + d, l] = fe * ve + fa * va + fb * vb + fw * w
+                    X[_EU + 3 + d, l] = me * ve + ma * va + mb * vb + mw * w
+            for a in range(slot):  # g_a = u_t . w_a
+                fa, ma = _EF + 3 * a, _EM + 3 * a
                 for l in range(nl):
-                    ex, ey, ez = X[_EA, l], X[_EA + 1, l], X[_EA + 2, l]
-                    ff = X[fa, l] * X[fb, l] + X[fa + 1, l] * X[fb + 1, l] + X[fa + 2, l] * X[fb + 2, l]
-                    mm = X[ma, l] * X[mb, l] + X[ma + 1, l] * X[mb + 1, l] + X[ma + 2, l] * X[mb + 2, l]
-                    ef = ((ex * X[fa, l] + ey * X[fa + 1, l] + ez * X[fa + 2, l])
-                          * (ex * X[fb, l] + ey * X[fb + 1, l] + ez * X[fb + 2, l]))
-                    em = ((ex * X[ma, l] + ey * X[ma + 1, l] + ez * X[ma + 2, l])
-                          * (ex * X[mb, l] + ey * X[mb + 1, l] + ez * X[mb + 2, l]))
-                    cross = (X[ma, l] * X[xb, l] + X[ma + 1, l] * X[xb + 1, l] + X[ma + 2, l] * X[xb + 2, l]
-                             + X[mb, l] * X[xa, l] + X[mb + 1, l] * X[xa + 1, l] + X[mb + 2, l] * X[xa + 2, l])
-                    E[m, n, l] += c * (wff * ff + wef * ef + wmm * mm + wem * em + wx * cross)
-                tb += 1
-            ta += 1
+                    X[_EG + a, l] = (X[_EU, l] * X[fa, l] + X[_EU + 1, l] * X[fa + 1, l] + X[_EU + 2, l] * X[fa + 2, l]
+                                     + X[_EU + 3, l] * X[ma, l] + X[_EU + 4, l] * X[ma + 1, l]
+                                     + X[_EU + 5, l] * X[ma + 2, l])
+            ta = 0
+            for m in range(8):
+                if not site_bars(G, site, s, m):
+                    continue
+                tb = ta
+                for n in range(m, 8):
+                    if not site_bars(G, site, s, n):
+                        continue
+                    for l in range(nl):
+                        E[m, n, l] += ct * X[_EG + ta, l] * X[_EG + tb, l]
+                    tb += 1
+                ta += 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
@@ -839,8 +789,8 @@ def _assemble(G, model, nl, F, Y, U, KB, TB, want_terms):
     then every entry is assembled from them (36 entries of sums instead of 64; a loop that wrote
     K[a, c] and K[c, a] together would not vectorise)."""
     if want_terms:
-        cc0, cc1, cc2, cc3 = G[_CCTRL], G[_CCTRL + 1], G[_CCTRL + 2], G[_CCTRL + 3]
-        cb0, cb1, cb2, cb3 = G[_CBEND], G[_CBEND + 1], G[_CBEND + 2], G[_CBEND + 3]
+        cc0, cc1, cc2, cc3 = G[G_CCTRL], G[G_CCTRL + 1], G[G_CCTRL + 2], G[G_CCTRL + 3]
+        cb0, cb1, cb2, cb3 = G[G_CBEND], G[G_CBEND + 1], G[G_CBEND + 2], G[G_CBEND + 3]
         for a in range(8):
             for c in range(a, 8):
                 for l in range(nl):
@@ -938,20 +888,26 @@ def _scratch(lanes, kinds, want_terms):
     H, F, U, TB, X, E, Z (the element ones of size 1 when no element is on)."""
     nt = 4 + kinds
     ne = lanes if kinds else 1
-    sizes = (_ROWS * lanes, 64 * lanes, 64 * lanes, _RROWS * lanes, 96 * lanes, lanes, _FROWS * lanes, 256 * lanes,
-             (nt if want_terms else 1) * 64 * lanes, (_XROWS if kinds else 1) * lanes, 64 * ne, 64 * ne)
-    total = 0
-    for size in sizes:
-        total += size
-    buf = np.empty(total)
-    o = np.cumsum(np.array(sizes)) - np.array(sizes)
-    return (buf[o[0]:o[0] + sizes[0]].reshape(_ROWS, lanes), buf[o[1]:o[1] + sizes[1]].reshape(8, 8, lanes),
-            buf[o[2]:o[2] + sizes[2]].reshape(8, 8, lanes), buf[o[3]:o[3] + sizes[3]].reshape(_RROWS, lanes),
-            buf[o[4]:o[4] + sizes[4]].reshape(6, 4, 4, lanes), buf[o[5]:o[5] + sizes[5]],
-            buf[o[6]:o[6] + sizes[6]].reshape(_FROWS, lanes), buf[o[7]:o[7] + sizes[7]].reshape(4, 8, 8, lanes),
-            buf[o[8]:o[8] + sizes[8]].reshape(nt if want_terms else 1, 8, 8, lanes),
-            buf[o[9]:o[9] + sizes[9]].reshape(_XROWS if kinds else 1, lanes),
-            buf[o[10]:o[10] + sizes[10]].reshape(8, 8, ne), buf[o[11]:o[11] + sizes[11]].reshape(8, 8, ne))
+    s0, s1, s2, s3 = _ROWS * lanes, 64 * lanes, 64 * lanes, _RROWS * lanes
+    s4, s5, s6, s7 = 96 * lanes, lanes, _FROWS * lanes, 256 * lanes
+    s8, s9, s10 = (nt if want_terms else 1) * 64 * lanes, (XROWS if kinds else 1) * lanes, 64 * ne
+    o1 = s0  # the offsets, summed by hand (no temporary arrays: one allocation a call)
+    o2 = o1 + s1
+    o3 = o2 + s2
+    o4 = o3 + s3
+    o5 = o4 + s4
+    o6 = o5 + s5
+    o7 = o6 + s6
+    o8 = o7 + s7
+    o9 = o8 + s8
+    o10 = o9 + s9
+    o11 = o10 + s10
+    buf = np.empty(o11 + s10)
+    return (buf[:o1].reshape(_ROWS, lanes), buf[o1:o2].reshape(8, 8, lanes), buf[o2:o3].reshape(8, 8, lanes),
+            buf[o3:o4].reshape(_RROWS, lanes), buf[o4:o5].reshape(6, 4, 4, lanes), buf[o5:o6],
+            buf[o6:o7].reshape(_FROWS, lanes), buf[o7:o8].reshape(4, 8, 8, lanes),
+            buf[o8:o9].reshape(nt if want_terms else 1, 8, 8, lanes), buf[o9:o10].reshape(XROWS if kinds else 1, lanes),
+            buf[o10:o11].reshape(8, 8, ne), buf[o11:o11 + s10].reshape(8, 8, ne))
 
 
 #: Width of one pose's row of the intermediates (:func:`run`'s ``X``): M1^-1 (64), the factors
@@ -1045,11 +1001,13 @@ def one(pose, G, EG, model, K, q, T, want_terms, Xo, want_x):  # pragma: no cove
     straight-line code (a call of :func:`run` for one pose runs the vectorised loops' set-ups and
     remainders, 4 to 6 us; this, about 1.5 us). The caller allocates the outputs: a compiled
     function that returns arrays pays for boxing them."""
-    cond = np.empty(1)
-    status = np.empty(1, dtype=np.int8)
-    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, K.reshape(1, 8, 8), q.reshape(1, 4), cond, status,
-          T.reshape(1, T.shape[0], 8, 8), want_terms, np.empty((1, 4, 4)), False, Xo.reshape(1, Xo.shape[0]), want_x)
-    return cond[0], status[0]
+    cs = np.empty(2)  # the condition and the status (a float), one allocation
+    Kr = K.reshape(1, 8, 8)
+    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, Kr, q.reshape(1, 4), cs[0:1], cs[1:2],
+          T.reshape(1, T.shape[0], 8, 8), want_terms, Kr, False, Xo.reshape(1, Xo.shape[0]), want_x)  # no J: K's
+    return cs[0], np.int8(cs[1])
 
 
-__all__ = ["CONSISTENT", "FASTMATH", "LANES", "NX", "PAPER", "X_F", "X_S", "X_Y", "atan2", "one", "run"]
+__all__ = ["CONSISTENT", "EA", "FASTMATH", "F_GC", "F_TV", "LANES", "NX", "PAPER", "S_A", "S_B", "S_LW", "S_ROWS",
+           "XROWS", "X_F", "X_S", "X_Y", "atan2", "element_axis", "form_count", "form_frame", "form_part",
+           "form_plane", "one", "run", "site_bars", "site_point"]

@@ -122,12 +122,12 @@ def design_frequencies(rows: np.ndarray, payload: Payload | None = None, *, prog
     Each design's mass model comes from its parameters (no URDF is written)."""
     from h4pin.description.geometry import geometry_from_params
     from h4pin.stiffness import frequencies, kernel, pipeline
-    from h4pin.studies.sweep import _kernels, params_of
+    from h4pin.studies.sweep import kernels, params_of
 
     out = np.full(len(rows), np.nan)
     work = frequencies._work(frequencies._NY, frequencies._NS)
     inter = np.empty((1, pipeline.NX))
-    for d, kern in enumerate(tqdm(_kernels(rows), desc="designs", unit="design", disable=not progress)):
+    for d, kern in enumerate(tqdm(kernels(rows), desc="designs", unit="design", disable=not progress)):
         if kern is None:
             continue
         params = params_of(rows[d])

@@ -232,7 +232,7 @@ def params_of(row: np.ndarray, base: H4Params | None = None) -> H4Params:
     return base.replace(**{name: v[0] for name, v in _design_arrays(row, base).items()})
 
 
-def _kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.Kernel | None]:
+def kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.Kernel | None]:
     """The packed kernels of many design rows at once (None for an invalid design), with the
     table of ``elements`` for each (its beam lengths are the design's): the design
     arrays of all rows (:func:`_design_arrays`), then the validity checks of H4Params
@@ -260,6 +260,10 @@ def _kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.
     return out
 
 
+#: scripts/bench.py's name for it (until bench.py is restructured).
+_kernels = kernels
+
+
 def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
     """Results of some designs (rows of :func:`designs`): ``valid``, ``reach_all``, ``worst``
     (m/N), ``volume`` (m^3), ``task_ok`` (count of task poses with status 0) and, with
@@ -268,7 +272,7 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
 
     Per design: one kernel call over the task poses and the volume grid, reduced in compiled
     code (:func:`h4pin.studies._derived.design_reduce`); the kernels of all the rows are packed
-    at once (:func:`_kernels`)."""
+    at once (:func:`kernels`)."""
     import numba
 
     if threads is not None:
@@ -286,7 +290,7 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
         inter = np.empty((len(corners), pipeline.NX))
         freq, counts = np.empty((len(corners), 1)), np.empty((len(corners), 2), dtype=np.int64)
         work = frequencies._work(frequencies._NY, frequencies._NS)
-    for d, kern in enumerate(_kernels(rows, spec.element_set())):
+    for d, kern in enumerate(kernels(rows, spec.element_set())):
         if kern is None:
             continue
         res = kernel.compliance_batch(kern, poses, spec.model, buf)
