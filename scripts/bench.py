@@ -522,7 +522,7 @@ def sweep_section(args: argparse.Namespace, h4: h4pin.H4) -> None:
     print("\nsweep per-design overhead (sweep.evaluate with the kernel's compiled call left out; "
           "target <= 20 % of the kernel's time for the 1000 task poses)")
     rows = {"1 thread": [sweep_overhead()]}
-    with sweep._client(2, None) as client:
+    with sweep.Client(2, None) as client:
         rows["2 Dask workers, each"] = list(client.run(sweep_overhead).values())
     for label, results in rows.items():
         for ev, over, k_task in results:
@@ -785,20 +785,20 @@ def sweep_overhead(n_designs: int = 256, repeat: int = 7) -> tuple[float, float,
 
     spec = sweep.Spec(n_designs=n_designs, chunk=64)
     rows = sweep.designs(spec)
-    kerns = [k for k in sweep._kernels(rows) if k is not None]
+    kerns = [k for k in sweep.kernels(rows) if k is not None]
     poses = np.ascontiguousarray(np.concatenate([spec.task.poses(), spec.volume.poses()]))
     task = np.ascontiguousarray(poses[:1000])
     sweep.evaluate(rows[:4], spec, 1)
     stored = kernel.compliance_batch(kerns[0], poses, spec.model)
-    task_buf = kernel._empty(len(task), False, False)
-    real_empty, real_run = kernel._empty, kernel._run
+    task_buf = kernel.empty_result(len(task), False, False)
+    real_empty, real_run = kernel.empty_result, kernel.run_poses
 
     def overhead_only() -> None:
-        kernel._empty, kernel._run = (lambda *a: stored), (lambda kern, x, code, res, *a, **k: res)
+        kernel.empty_result, kernel.run_poses = (lambda *a: stored), (lambda kern, x, code, res, *a, **k: res)
         try:
             sweep.evaluate(rows, spec, 1)
         finally:
-            kernel._empty, kernel._run = real_empty, real_run
+            kernel.empty_result, kernel.run_poses = real_empty, real_run
 
     def kernel_task() -> None:
         for k in kerns:

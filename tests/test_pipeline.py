@@ -162,11 +162,11 @@ def test_non_finite_poses_are_unreachable_in_the_compiled_code(proto):
     x[[3, 50, 120], [0, 2, 3]] = np.nan
     x[77] = np.inf
     kern = kernel.prepare(proto.geometry)
-    res = kernel._run(kern, x, 0, kernel._empty(len(x), False, False), False, False)
+    res = kernel.run_poses(kern, x, 0, kernel.empty_result(len(x), False, False), False, False)
     bad = [3, 50, 77, 120]
     assert np.all(res.status[bad] == verdicts.UNREACHABLE)
     assert np.all(np.isnan(res.q[bad])) and np.all(np.isnan(res.condition[bad])) and np.all(np.isnan(res.K[bad]))
-    K, q, cond, status, _ = kernel.one(kern, kernel._readonly(x[77]), 0)
+    K, q, cond, status, _ = kernel.one(kern, kernel.readonly(x[77]), 0)
     assert status == verdicts.UNREACHABLE and np.isnan(cond) and np.all(np.isnan(q)) and np.all(np.isnan(K))
     with pytest.raises(PoseError):
         kernel.compliance_batch(kern, x)
@@ -283,7 +283,7 @@ def test_streaming_and_out_arrays_equal_batch(proto):
     parts = (xs[s:s + 30] for s in range(0, len(xs), 30))
     got = np.concatenate([p.K.copy() for _, p in kernel.iter_compliance(proto.geometry, parts, "paper", chunk=8)])
     np.testing.assert_array_equal(got, whole.K)
-    out = kernel._empty(len(xs), False, False)
+    out = kernel.empty_result(len(xs), False, False)
     res = kernel.compliance_batch(proto.geometry, xs, "paper", out)
     assert res.K is out.K
     np.testing.assert_array_equal(out.K, whole.K)
@@ -470,7 +470,7 @@ def test_element_terms_equal_the_statics_route(robot, model):
         for t, name in enumerate(names):
             assert np.max(np.abs(res.terms[p, 4 + t] - ref[name])) <= 1e-12 * scale, name
         np.testing.assert_allclose(res.K[p], bare.K[p] + sum(ref.values()), rtol=0, atol=1e-12 * scale)
-    K1, _, _, status, T1 = kernel.one(kern, kernel._readonly(xs[0]), kernel._model_code(model), terms=True)
+    K1, _, _, status, T1 = kernel.one(kern, kernel.readonly(xs[0]), kernel.model_code(model), terms=True)
     assert status == verdicts.OK
     assert rel(K1, res.K[0]) < 1e-13 and rel(T1, res.terms[0]) < 1e-13
     for name in names[::3]:  # one kind alone: its term, and K = eq. 30 + it

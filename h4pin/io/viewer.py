@@ -83,14 +83,14 @@ def draw_ellipsoid(vis: meshcat.Visualizer, path: str, block: np.ndarray, centre
     radii, axes = ellipsoid_axes(np.asarray(block, float))
     um = radii * 1e6
     if scale is None:
-        scale = _nice(ELLIPSOID_SIZE * 1e3 / um.max())
+        scale = nice(ELLIPSOID_SIZE * 1e3 / um.max())
     vis[path].set_object(mg.Ellipsoid(np.maximum(um * scale * 1e-3, 1e-5)),
                          mg.MeshLambertMaterial(color=colour, opacity=opacity, transparent=True))
     vis[path].set_transform(_transform(axes, np.asarray(centre, float)))
     return scale
 
 
-def _nice(x: float) -> float:
+def nice(x: float) -> float:
     """The largest of 1, 2, 5 x 10^n not above x."""
     exp = np.floor(np.log10(x))
     return float(max(m for m in (1.0, 2.0, 5.0) if m * 10**exp <= x * (1 + 1e-12)) * 10**exp)
@@ -114,7 +114,7 @@ def _rotation_y_to(d: np.ndarray) -> np.ndarray:
     return pin.exp3(axis / s * np.arctan2(s, c))
 
 
-def _hex(rgb: np.ndarray) -> int:
+def hex_color(rgb: np.ndarray) -> int:
     r, g, b = (int(round(255 * c)) for c in rgb[:3])
     return (r << 16) + (g << 8) + b
 
@@ -195,7 +195,7 @@ class Scene:
         radii, axes = ellipsoid_axes(k[:3, :3])
         um = radii * 1e6
         if scale is None:
-            scale = _nice(ELLIPSOID_SIZE * 1e3 / um.max())
+            scale = nice(ELLIPSOID_SIZE * 1e3 / um.max())
         self._draw_ellipsoid("compliance/translational", x[:3], um * scale * 1e-3, axes, 0x20b050, 0.6)
         self.legend.append(f"green: translational compliance ellipsoid at D, 1 um/N drawn as {scale:g} mm "
                            f"(radii {', '.join(f'{v:.1f}' for v in um)} um/N, model '{model}')")
@@ -230,7 +230,7 @@ class Scene:
             limits.check_range("exaggeration", exaggeration, "exaggeration")
         dtp, _ = deflection(self.h4, x, g, model)
         if exaggeration is None:
-            exaggeration = _nice(GHOST_SIZE / max(np.linalg.norm(dtp[:3]), 1e-12))
+            exaggeration = nice(GHOST_SIZE / max(np.linalg.norm(dtp[:3]), 1e-12))
         q = deflected_configuration(self.h4, x, g, scale=exaggeration, model=model)
         ghost = MeshcatVisualizer(self.h4.model, self.h4.collision_model, self.h4.visual_model)
         ghost.initViewer(viewer=self.vis)
@@ -279,7 +279,7 @@ class Scene:
         act = np.array([res.shapes_q[index, em.model.joints[em.model.getJointId(f"actuator_{i + 1}_elastic")].idx_v]
                         for i in range(4)])
         if amplitude is None:
-            amplitude = _nice(GHOST_SIZE / max(np.linalg.norm(tp[:3]), 1e-12))
+            amplitude = nice(GHOST_SIZE / max(np.linalg.norm(tp[:3]), 1e-12))
         st = kin.state(self.h4, x)
         anim = Animation(default_framerate=24)
         viewer, self.robot.viewer = self.robot.viewer, None
@@ -332,7 +332,7 @@ class Scene:
         cmap = matplotlib.colormaps["viridis"]
         for n, (radii, axes), t in tqdm(list(zip(ok, blocks, top, strict=True)), desc="ellipsoid field",
                                         unit="pose", disable=not progress):
-            colour = _hex(cmap((t - lo) / (hi - lo) if hi > lo else 0.5))
+            colour = hex_color(cmap((t - lo) / (hi - lo) if hi > lo else 0.5))
             self._draw_ellipsoid(f"field/{n}", x[n, :3], radii * scale, axes, colour, 0.85)
         self.legend.append(f"field: {ok.size} of {len(x)} poses, largest compliance {lo:.1f} (dark) to "
                            f"{hi:.1f} (yellow) um/N, radius {size * 1e3:g} mm for {hi:.1f} um/N")

@@ -38,7 +38,7 @@ import pinocchio as pin
 
 from h4pin.errors import ParameterError
 from h4pin.io import meshcat_server
-from h4pin.io.viewer import GHOST_SIZE, MechanismScene, _hex, _nice, draw_mechanism
+from h4pin.io.viewer import GHOST_SIZE, MechanismScene, draw_mechanism, hex_color, nice
 
 #: At most this many ellipsoids are drawn (a page of a few MB).
 MAX_ELLIPSOIDS = 5000
@@ -105,7 +105,7 @@ def draw_field(scene: MechanismScene, ds: Any, size: float | None = None, path: 
     scale = size / hi
     cmap = matplotlib.colormaps["viridis"]
     for n in range(len(pos)):
-        colour = _hex(cmap((worst[n] - lo) / (hi - lo) if hi > lo else 0.5))
+        colour = hex_color(cmap((worst[n] - lo) / (hi - lo) if hi > lo else 0.5))
         scene._draw_ellipsoid(f"{path}/{n}", pos[n], np.maximum(radii[n], 0) * scale, axes[n], colour, 0.85)
     scene.legend.append(f"field: {len(pos)} of {ds.status.size} grid points of the atlas, worst compliance "
                         f"{lo * 1e6:.3g} (dark) to {hi * 1e6:.3g} (yellow) um/N, radius {size * 1e3:.3g} mm for "
@@ -131,7 +131,7 @@ def draw_load(scene: MechanismScene, springs: Mapping[str, Any], output: str, lo
     w = _wrench(load)
     moved = float(np.linalg.norm(dy[:3]))
     if exaggeration is None:
-        exaggeration = _nice(min(GHOST_SIZE, 0.1 * _extent(scene)) / max(moved, 1e-15))
+        exaggeration = nice(min(GHOST_SIZE, 0.1 * _extent(scene)) / max(moved, 1e-15))
     draw_mechanism(scene.vis, mech, pin.integrate(mech.model, q, exaggeration * dq), "ghost",
                    (0xe04040,) * 4, 0.4)
     d = mech.model.createData()

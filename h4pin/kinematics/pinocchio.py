@@ -249,7 +249,6 @@ def frame_position(h4, name: str, q: np.ndarray | None = None, data: pin.Data | 
 
 
 #: The name h4pin.studies.atlas calls it by, until it uses the public one.
-_configuration_pack = configuration_pack
 
 __all__ = ["FRAME_TYPES", "Kinematics", "as_configuration", "assemble", "closure_residuals", "configuration",
            "configuration_pack", "frame_id", "frame_position", "gravity_torques", "jacobian", "kinematics",

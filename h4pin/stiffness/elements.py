@@ -182,7 +182,6 @@ def beam_matrix(name: str, elements: Elements, index: int, axis: np.ndarray, len
 
 
 #: The name h4pin.checks.elements calls it by, until it uses the public one.
-_beam_matrix = beam_matrix
 
 
 def form_compliance(form: str, e: np.ndarray, n: np.ndarray, length: float) -> np.ndarray:

@@ -421,7 +421,7 @@ def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # pragma: no cov
     x (4,), from the pipeline's q (4,) and intermediates Xrow (:data:`h4pin.stiffness.pipeline.NX`),
     the packed geometry G and element table EG, the mass model MP (:func:`pack_masses`), the
     configuration constants CF, CI (:func:`h4pin.kinematics.pinocchio.configuration_pack`) and
-    the work arrays W (:func:`_work`). Returns the number of massive directions.
+    the work arrays W (:func:`work_arrays`). Returns the number of massive directions.
 
     The bodies' twists are linear in y (:func:`_y_layout`): J_b (6 x its y columns) per body,
     ``M_y = sum J_b^T M6_b J_b``; the springs' columns R (y per unit deformation, times
@@ -748,7 +748,7 @@ def _bar_columns(i, n, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols):  # noqa
     _add_body(My, M6[12 + n], J, cols, nc)
 
 
-def _work(ny: int, ns: int) -> tuple:
+def work_arrays(ny: int, ns: int) -> tuple:
     """The work arrays of :func:`_pose_frequencies` for up to ny y rows and ns springs."""
     return (np.zeros((24, 3)), np.zeros((24, 6, 6)), np.zeros((46, 3)), np.zeros((8, 3, 3)),
             np.full((4, 4), -1, dtype=np.int64), np.zeros((ny, ny)), np.zeros((ny, ns)), np.zeros((ny, ns)),
@@ -776,7 +776,7 @@ def frequencies_run(poses, start, stop, q, status, X, G, EG, MP, CF, CI, freq, c
 #: the Pinocchio route.
 FREQUENCIES = _jit.Gate("natural frequencies", frequencies_run)
 #: Largest y and spring counts of a robot with every element on (:func:`_y_layout`).
-_NY, _NS = 16 + 6 * 14, 16 + 10 * 2 + 5 * 4 + 8 * 4 + 2 * 4
+NY, NS = 16 + 6 * 14, 16 + 10 * 2 + 5 * 4 + 8 * 4 + 2 * 4
 
 
 def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bool = True,
@@ -797,11 +797,11 @@ def frequencies(h4, poses: np.ndarray, payload: Any = None, *, link_inertias: bo
         res = kernel.run_poses(kern, x, pipeline.CONSISTENT, kernel.empty_result(n, False, False), False, False, inter)
         q, status = res.q, res.status
     CF, CI = kin.configuration_pack(h4)
-    width = _NS if count is None else int(count)
+    width = NS if count is None else int(count)
     freq = np.empty((n, width))
     counts = np.empty((n, 2), dtype=np.int64)
     frequencies_run(x, 0, n, q, status, inter, kern.packed, kern.elements, pack_masses(h4, payload, link_inertias),
-                    CF, CI, freq, counts, _work(_NY, _NS))
+                    CF, CI, freq, counts, work_arrays(NY, NS))
     if count is None:
         freq = freq[:, :max(int(counts[:, 0].max(initial=0)), 1)]
     return freq, counts, status

@@ -206,7 +206,7 @@ class Kernel:
             x = as_poses(pose)
             if x.ndim != 1:
                 raise PoseError(f"a Kernel call takes one pose (4,), got shape {x.shape}; use compliance_batch")
-        K, q, cond, status, _ = one(self, x, _model_code(model))
+        K, q, cond, status, _ = one(self, x, model_code(model))
         return K, q, cond, status
 
 
@@ -238,7 +238,7 @@ def prepare(g: H4Geometry | Kernel | Any) -> Kernel:
     return Kernel(g)
 
 
-def _model_code(model: str) -> int:
+def model_code(model: str) -> int:
     if model not in MODELS:
         raise ParameterError(f"model must be one of {MODELS}, got {model!r}")
     return MODELS.index(model)
@@ -392,7 +392,7 @@ def compliance_batch(g: Any, poses: np.ndarray, model: str = "paper", out: Kerne
     The number of threads is numba's (``numba.set_num_threads``).
     """
     kern = prepare(g)
-    code = _model_code(model)
+    code = model_code(model)
     x = as_poses(poses)
     x = np.ascontiguousarray(x[None] if x.ndim == 1 else x)
     res = (empty_result(len(x), terms, jacobian, kern.kinds) if out is None
@@ -446,7 +446,6 @@ def threads() -> int:
 
 
 #: The names the studies call these by (h4pin.studies.atlas, .sweep, .frequency), until they use the public ones.
-_readonly, _run, _empty = readonly, run_poses, empty_result
 
 _KERNELS: dict[tuple[int, int], Kernel] = {}
 

@@ -145,7 +145,7 @@ def _masses(source: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if isinstance(source, H4Params):
         return frequencies.pack_masses_params(source)
     if getattr(source, "geometry", None) is not None and source.geometry.ideal:
-        return (frequencies.pack_masses(source), *kin._configuration_pack(source))
+        return (frequencies.pack_masses(source), *kin.configuration_pack(source))
     raise ParameterError("frequency: the first natural frequency needs an h4pin.H4 whose parallelograms are exact or "
                          f"an h4pin.H4Params (the link inertias), got {type(source).__name__}")
 
@@ -159,14 +159,14 @@ def _kernel_chunks(kern: Any, parts: Any, model: str, chunk: int, masses: Any) -
             yield start, res, None
         return
     MP, CF, CI = masses
-    work = frequencies._work(frequencies._NY, frequencies._NS)
+    work = frequencies.work_arrays(frequencies.NY, frequencies.NS)
     start = 0
     for part in parts:
-        x = kernel._readonly(np.ascontiguousarray(part, dtype=float))
+        x = kernel.readonly(np.ascontiguousarray(part, dtype=float))
         n = len(x)
-        res = kernel._empty(n, False, True)
+        res = kernel.empty_result(n, False, True)
         inter = np.empty((n, pipeline.NX))
-        kernel._run(kern, x, kernel._model_code(model), res, False, True, inter)
+        kernel.run_poses(kern, x, kernel.model_code(model), res, False, True, inter)
         freq, counts = np.empty((n, 1)), np.empty((n, 2), dtype=np.int64)
         frequencies.frequencies_run(x, 0, n, res.q, res.status, inter, kern.packed, kern.elements, MP, CF, CI, freq,
                                     counts, work)
@@ -385,7 +385,7 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
-    kernel._model_code(model)
+    kernel.model_code(model)
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
     block, grid = block_layout(shape, chunk)

@@ -140,7 +140,7 @@ class AdeptCycle:
         return pose, vel, acc
 
 
-def _positive(name: str, value: Any, *, zero: bool = False, unit: str = "") -> float:
+def positive(name: str, value: Any, *, zero: bool = False, unit: str = "") -> float:
     if isinstance(value, (bool, np.bool_, str, bytes)):
         raise ParameterError(f"{name} must be a number{unit}, got {type(value).__name__} {short(value)}")
     try:
@@ -191,11 +191,11 @@ def adept_cycle(h4: H4, period: float = 0.5, *, centre: np.ndarray | None = None
     """
     from h4pin.inputs import check_real, real_array
 
-    period = _positive("period", period, unit=" (s)")
-    length = limits.check_range("length", _positive("length", length, zero=True, unit=" (m)"), "stroke")
-    height = limits.check_range("height", _positive("height", height, zero=True, unit=" (m)"), "stroke")
-    rise = _positive("rise", rise)
-    overlap = _positive("overlap", overlap, zero=True)
+    period = positive("period", period, unit=" (s)")
+    length = limits.check_range("length", positive("length", length, zero=True, unit=" (m)"), "stroke")
+    height = limits.check_range("height", positive("height", height, zero=True, unit=" (m)"), "stroke")
+    rise = positive("rise", rise)
+    overlap = positive("overlap", overlap, zero=True)
     if not MIN_RISE <= rise <= 0.5:
         raise ParameterError(f"rise must be in [{MIN_RISE:g}, 0.5] (fraction of the half cycle), got {short(rise)}")
     if overlap >= 1.0:
@@ -238,7 +238,7 @@ def payload_model(h4: H4, payload: float = 0.0, at: np.ndarray | None = None,
     ``payload`` (kg) fixed to the central bar at ``at`` (3,) m from D in the central-bar frame
     (world-aligned at theta = 0; default D itself), and gravity ``gravity`` (3,) m/s^2 (default:
     the model's)."""
-    payload = _positive("payload", payload, zero=True, unit=" (kg)")
+    payload = positive("payload", payload, zero=True, unit=" (kg)")
     o = np.zeros(3) if at is None else np.asarray(at, dtype=float)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
         raise ParameterError(f"the payload's point must be a finite offset (3,) in m, got {short(at)}")
@@ -551,9 +551,9 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
         raise ParameterError(f"samples must be an integer >= 8, got {short(samples)}")
     limits.check_cycle_samples(int(samples))
-    limits.check_range("period", _positive("period", period, unit=" (s)"), "cycle_time")
-    payload = limits.check_range("payload", _positive("payload", payload, zero=True, unit=" (kg)"), "payload")
-    damping = _positive("damping", damping, zero=True)
+    limits.check_range("period", positive("period", period, unit=" (s)"), "cycle_time")
+    payload = limits.check_range("payload", positive("payload", payload, zero=True, unit=" (kg)"), "payload")
+    damping = positive("damping", damping, zero=True)
     at = np.zeros(3) if payload_at is None else np.asarray(payload_at, dtype=float)
     check_cycle_options({**cycle_options, "check": 0})
     cycle = adept_cycle(h4, period, check=0, **cycle_options)

@@ -234,7 +234,7 @@ def springs_along(h4: H4, cycle: rigid.AdeptCycle, t: np.ndarray, payload: float
         UnreachablePoseError (and subclasses), SingularPoseError: as the cycle's poses.
         ParameterError: a bad payload.
     """
-    payload = rigid._positive("payload", payload, zero=True, unit=" (kg)")
+    payload = rigid.positive("payload", payload, zero=True, unit=" (kg)")
     em = elastic_model(h4)
     mm = pin.Model(mass_model(em))
     plate_joints = {em.model.getJointId(h4.model.names[j]) for j in _plate_joints(h4)}
@@ -384,10 +384,10 @@ def run(h4: H4, period: float = 0.5, payload: float = 0.0, *, samples: int = 400
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 8:
         raise ParameterError(f"samples must be an integer >= 8, got {short(samples)}")
     limits.check_elastic_cycle(int(samples), 0)  # the motion alone, before its step is computed from it
-    period = limits.check_range("period", rigid._positive("period", period, unit=" (s)"), "cycle_time")
-    payload = limits.check_range("payload", rigid._positive("payload", payload, zero=True, unit=" (kg)"), "payload")
-    damping = limits.check_range("damping", rigid._positive("damping", damping, zero=True, unit=" (s)"), "damping")
-    hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
+    period = limits.check_range("period", rigid.positive("period", period, unit=" (s)"), "cycle_time")
+    payload = limits.check_range("payload", rigid.positive("payload", payload, zero=True, unit=" (kg)"), "payload")
+    damping = limits.check_range("damping", rigid.positive("damping", damping, zero=True, unit=" (s)"), "damping")
+    hold = rigid.positive("hold", hold, zero=True, unit=" (s)")
     motion = check_flag(motion, "motion")
     rigid.check_cycle_options(cycle_options)
     dt = float(period) / samples
@@ -453,8 +453,8 @@ def mujoco_cycle(h4: H4, period: float = 0.5, payload: float = 0.0, *, timestep:
     """
     from h4pin.io import mjcf
 
-    hold = rigid._positive("hold", hold, zero=True, unit=" (s)")
-    settle = rigid._positive("settle", settle, zero=True, unit=" (s)")
+    hold = rigid.positive("hold", hold, zero=True, unit=" (s)")
+    settle = rigid.positive("settle", settle, zero=True, unit=" (s)")
     cycle = rigid.adept_cycle(h4, period, **cycle_options)
     spec = mjcf.elastic_spec(h4, q=h4.configuration(cycle.sample(np.zeros(1))[0][0]), damping=damping,
                              timestep=timestep, servo=True, payload=payload)

@@ -125,17 +125,17 @@ def design_frequencies(rows: np.ndarray, payload: Payload | None = None, *, prog
     from h4pin.studies.sweep import kernels, params_of
 
     out = np.full(len(rows), np.nan)
-    work = frequencies._work(frequencies._NY, frequencies._NS)
+    work = frequencies.work_arrays(frequencies.NY, frequencies.NS)
     inter = np.empty((1, pipeline.NX))
     for d, kern in enumerate(tqdm(kernels(rows), desc="designs", unit="design", disable=not progress)):
         if kern is None:
             continue
         params = params_of(rows[d])
         try:
-            x = kernel._readonly(centre_pose(geometry_from_params(params))[None])
+            x = kernel.readonly(centre_pose(geometry_from_params(params))[None])
         except H4Error:
             continue
-        res = kernel._run(kern, x, pipeline.CONSISTENT, kernel._empty(1, False, False), False, False, inter)
+        res = kernel.run_poses(kern, x, pipeline.CONSISTENT, kernel.empty_result(1, False, False), False, False, inter)
         MP, CF, CI = frequencies.pack_masses_params(params, payload)
         freq, counts = np.empty((1, 1)), np.empty((1, 2), dtype=np.int64)
         frequencies.frequencies_run(x, 0, 1, res.q, res.status, inter, kern.packed, kern.elements, MP, CF, CI,

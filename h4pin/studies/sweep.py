@@ -137,7 +137,7 @@ class Spec:
             raise ParameterError(f"bounds must give {tuple(VARIABLES)}, got {tuple(self.bounds)}")
         object.__setattr__(self, "bounds", {k: tuple(float(v) for v in self.bounds[k]) for k in VARIABLES})
         limits.check_springs({"kc": self.bounds["kc"]}, "bounds")
-        kernel._model_code(self.model)
+        kernel.model_code(self.model)
         self.element_set()  # checked now: a bad name or value is refused before any work
 
     @property
@@ -261,7 +261,6 @@ def kernels(rows: np.ndarray, elements: Elements | None = None) -> list[kernel.K
 
 
 #: scripts/bench.py's name for it (until bench.py is restructured).
-_kernels = kernels
 
 
 def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[str, np.ndarray]:
@@ -282,14 +281,14 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
     n = len(rows)
     out = {"valid": np.zeros(n, bool), "reach_all": np.zeros(n, bool), "worst": np.full(n, np.nan),
            "volume": np.full(n, np.nan), "task_ok": np.zeros(n, np.int32), "first_frequency": np.full(n, np.nan)}
-    buf = kernel._empty(len(poses), False, False)
+    buf = kernel.empty_result(len(poses), False, False)
     n_task = len(task)
     if spec.frequency:
-        corners = kernel._readonly(np.ascontiguousarray(spec.task.corners()))
-        f_buf = kernel._empty(len(corners), False, False)
+        corners = kernel.readonly(np.ascontiguousarray(spec.task.corners()))
+        f_buf = kernel.empty_result(len(corners), False, False)
         inter = np.empty((len(corners), pipeline.NX))
         freq, counts = np.empty((len(corners), 1)), np.empty((len(corners), 2), dtype=np.int64)
-        work = frequencies._work(frequencies._NY, frequencies._NS)
+        work = frequencies.work_arrays(frequencies.NY, frequencies.NS)
     for d, kern in enumerate(kernels(rows, spec.element_set())):
         if kern is None:
             continue
@@ -302,7 +301,7 @@ def evaluate(rows: np.ndarray, spec: Spec, threads: int | None = None) -> dict[s
         out["volume"][d] = n_grid * spec.volume.cell
         if spec.frequency:
             MP, CF, CI = frequencies.pack_masses_params(params_of(rows[d]))
-            kernel._run(kern, corners, pipeline.CONSISTENT, f_buf, False, False, inter)
+            kernel.run_poses(kern, corners, pipeline.CONSISTENT, f_buf, False, False, inter)
             frequencies.frequencies_run(corners, 0, len(corners), f_buf.q, f_buf.status, inter, kern.packed,
                                         kern.elements, MP, CF, CI, freq, counts, work)
             ok = f_buf.status == 0
@@ -501,7 +500,7 @@ def _run_locked(path: Path, spec: Spec, workers: int | None, scheduler: str | No
             write(*_chunk_task(text, c, table[c * spec.chunk:(c + 1) * spec.chunk], threads))
             bar.update()
     else:
-        with _client(workers, scheduler) as client:
+        with Client(workers, scheduler) as client:
             from distributed import as_completed
 
             futures = [client.submit(_chunk_task, text, c, table[c * spec.chunk:(c + 1) * spec.chunk], threads or 1,
@@ -513,7 +512,7 @@ def _run_locked(path: Path, spec: Spec, workers: int | None, scheduler: str | No
     make_readable(path)
 
 
-class _client:
+class Client:
     """A Dask client on a new LocalCluster (closed on exit) or on a running scheduler."""
 
     def __init__(self, workers: int | None, scheduler: str | None):
@@ -617,7 +616,7 @@ def _noop(x: int) -> int:
 def dask_overhead(workers: int = 2, n: int = 400, client: Any = None) -> float:
     """Worker-seconds lost per task on Dask: the wall time of ``n`` empty tasks times the
     number of workers, over ``n`` (each task also pays its result's transfer, a few KB here)."""
-    with _client(workers, None) if client is None else _nullcontext(client) as c:
+    with Client(workers, None) if client is None else _nullcontext(client) as c:
         c.gather(c.map(_noop, range(50), pure=False))  # warm up
         t0 = time.perf_counter()
         c.gather(c.map(_noop, range(n), pure=False))
