@@ -217,3 +217,28 @@ def test_unsupported_joint_kinds_take_the_pinocchio_route():
         mech.compliance(q, {"ball_zyx": 10.0}, ["tip"], method="compiled")
     auto = mech.compliance(np.array([q]), {"ball_zyx": 10.0}, ["tip"])  # auto: the Pinocchio route
     np.testing.assert_array_equal(auto[0], mech.compliance(q, {"ball_zyx": 10.0}, ["tip"], method="pinocchio"))
+
+
+MJCF = {"agility_cassie/cassie.xml": (None, "left-foot"), "iit_softfoot/softfoot.xml": (None, "heel"),
+        "ufactory_xarm7/hand.xml": (["left_driver_joint"], "left_finger")}
+
+
+@pytest.mark.parametrize("path", sorted(MJCF))
+def test_compiled_equals_pinocchio_on_the_mjcf_corpus(path):
+    """The MJCF robots as MuJoCo means them: a free-flyer root, joints on any axis, the file's
+    joint couplings (rows the compiled path takes per configuration)."""
+    pytest.importorskip("mujoco")
+    if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
+        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+    motors, frame = MJCF[path]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        mech = Mechanism.from_mjcf(HERE / "mjcf" / path, actuated=motors)
+        q = mech.assemble()
+    assert cp.tables(mech.model, mech.constraint_models) is not None
+    springs = _springs(mech)
+    outs = [FrameOutput(frame), FrameOutput(frame, reference=pin.LOCAL)]
+    _close(mech.compliance(np.array([q, q]), springs, outs, method="compiled")[1],
+           mech.compliance(q, springs, outs, method="pinocchio"), 1e-12)
+    _same_frequencies(mech.modes(np.array([q]), springs, method="compiled").frequencies[0],
+                      mech.modes(q, springs, method="pinocchio").frequencies[:4])

@@ -77,6 +77,7 @@ class Tables(NamedTuple):
     mass: np.ndarray  # (nj,) kg
     lever: np.ndarray  # (nj, 3) centre of mass, joint frame
     inertia: np.ndarray  # (nj, 3, 3) about the centre of mass, joint frame
+    armature: np.ndarray  # (nv,) rotor inertia on each coordinate (Pinocchio's model.armature)
     c_joint: np.ndarray  # (nc, 2) int64 the two joints of each closure
     c_rot: np.ndarray  # (nc, 2, 3, 3) each side's frame in its joint's frame
     c_pos: np.ndarray  # (nc, 2, 3)
@@ -132,6 +133,7 @@ def tables(model: pin.Model, constraint_models: Any, extra_inertias: dict[int, p
                   np.array([model.joints[j].idx_q if j else 0 for j in range(nj)], dtype=np.int64), idx_v, nv_j,
                   ancestor, col_joint, col_scale, np.array([i.mass for i in inertias]),
                   np.array([i.lever for i in inertias]), np.array([i.inertia for i in inertias]),
+                  np.array(model.armature, dtype=float).reshape(nv),
                   np.array([[cm.joint1_id, cm.joint2_id] for cm in cms], dtype=np.int64).reshape(-1, 2), c_rot, c_pos,
                   np.array([cm.type == pin.ContactType.CONTACT_6D for cm in cms], dtype=np.bool_))
 
@@ -516,8 +518,9 @@ def _output_rows(ancestor, col_joint, frame_joint, frame_rot, frame_pos, frame_r
 
 
 @njit(cache=True, nogil=True)
-def _mass_matrix(parents, ancestor, col_joint, mass, lever, inertia, orot, opos, jac, out):
-    """Joint-space inertia (nv, nv) by composite rigid bodies, in the world frame."""
+def _mass_matrix(parents, ancestor, col_joint, mass, lever, inertia, armature, orot, opos, jac, out):
+    """Joint-space inertia (nv, nv) by composite rigid bodies, in the world frame, with the
+    coordinates' armature on the diagonal (as Pinocchio's ``crba``)."""
     nj, nv = len(parents), jac.shape[1]
     comp = np.zeros((nj, 6, 6))
     tmp, ic, cx, c = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3)
@@ -557,6 +560,7 @@ def _mass_matrix(parents, ancestor, col_joint, mass, lever, inertia, orot, opos,
                     s += f[u] * jac[u, b]
                 out[a, b] = s
                 out[b, a] = s
+        out[a, a] += armature[a]
 
 
 @njit(cache=True, nogil=True)
@@ -601,8 +605,8 @@ def _frequencies(nz, lo, mass, col, freq):
 
 @njit(cache=True, nogil=True)
 def batch(parents, kind, axis, rot, pos, idx_q, idx_v, nv_j, ancestor, col_joint, col_scale, mass_j, lever, inertia,
-          c_joint, c_rot, c_pos, c_six, frame_joint, frame_rot, frame_pos, frame_ref, row_frame, row_index, row_scale,
-          Q, k, working, extra, tol, start, stop, comp, freq, status):
+          armature, c_joint, c_rot, c_pos, c_six, frame_joint, frame_rot, frame_pos, frame_ref, row_frame, row_index,
+          row_scale, Q, k, working, extra, tol, start, stop, comp, freq, status):
     """The arrays of :class:`Tables` and :class:`Outputs`, in order, then: compliance (m, m)
     into ``comp[i]`` and, when ``freq`` has columns, the first frequencies into ``freq[i]``, for
     configurations ``Q[start:stop]``; ``k`` (nv,) springs, ``working`` (nv,) the coordinates not
@@ -644,7 +648,7 @@ def batch(parents, kind, axis, rot, pos, idx_q, idx_v, nv_j, ancestor, col_joint
                      row_scale, orot, opos, jac, col, g)
         _compliance(lo, g, nz, comp[i])
         if freq.shape[1]:
-            _mass_matrix(parents, ancestor, col_joint, mass_j, lever, inertia, orot, opos, jac, mass)
+            _mass_matrix(parents, ancestor, col_joint, mass_j, lever, inertia, armature, orot, opos, jac, mass)
             if not _frequencies(nz, lo, mass, col, freq[i]):
                 continue
         status[i] = OK
