@@ -199,7 +199,12 @@ def test_the_walk_through_of_the_doc_runs(monkeypatch):
     import re
 
     text = (ROOT / "docs" / "mechanisms.md").read_text(encoding="utf-8")
-    code = "\n".join(re.findall(r"```python\n(.*?)```", text, re.S))
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:  # the elastic MuJoCo block needs the mujoco extra (CI's oldest-Pinocchio run lacks it)
+        blocks = [b for b in blocks if "import mujoco" not in b]
+    code = "\n".join(blocks)
     monkeypatch.chdir(ROOT)
     namespace: dict = {}
     exec(compile(code, "docs/mechanisms.md", "exec"), namespace)
