@@ -39,12 +39,6 @@ BYTES_PER_CONFIGURATION = 256
 CONFIGURATIONS_PER_S = 1e4
 
 
-def check_method(method: Any) -> str:
-    if not isinstance(method, str) or method not in METHODS:
-        raise ParameterError(f"method: one of {', '.join(METHODS)}, got {method!r}")
-    return method
-
-
 def check_threads(threads: Any) -> int:
     if threads is None:
         return os.cpu_count() or 1

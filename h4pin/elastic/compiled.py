@@ -40,7 +40,6 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from h4pin.errors import ParameterError
 from h4pin.lookup import frame_id
 
 REVOLUTE, UNBOUNDED, PRISMATIC, SPHERICAL, FREE_FLYER = 1, 2, 3, 4, 5
@@ -92,6 +91,7 @@ def tables(model: pin.Model, constraint_models: Any, extra_inertias: dict[int, p
     nj, nv = model.njoints, model.nv
     kind = np.zeros(nj, dtype=np.int64)
     axis = np.zeros((nj, 3))
+    neutral = pin.neutral(model)
     for j in range(1, nj):
         jm = model.joints[j]
         k = _KINDS.get(jm.shortname())
@@ -100,7 +100,7 @@ def tables(model: pin.Model, constraint_models: Any, extra_inertias: dict[int, p
         kind[j] = k
         if k in (REVOLUTE, UNBOUNDED, PRISMATIC):
             jd = jm.createData()
-            jm.calc(jd, pin.neutral(model))
+            jm.calc(jd, neutral)
             s = np.asarray(jd.S, dtype=float).reshape(6)
             axis[j] = s[3:] if k != PRISMATIC else s[:3]
     parents = np.array(model.parents, dtype=np.int64)
@@ -653,9 +653,3 @@ def batch(parents, kind, axis, rot, pos, idx_q, idx_v, nv_j, ancestor, col_joint
                 continue
         status[i] = OK
 
-
-def check_supported(tab: Tables | None, what: str) -> Tables:
-    """``tab``, or a ParameterError when the model has a joint this path does not compute."""
-    if tab is None:
-        raise ParameterError(f"{what}: a joint kind the compiled path does not compute (method='pinocchio')")
-    return tab

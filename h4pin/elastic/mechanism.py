@@ -45,6 +45,7 @@ from h4pin.elastic.engine import (
     undamped_modes,
 )
 from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
+from h4pin.inputs import check_choice
 from h4pin.lookup import finite_configuration, model_configuration
 
 #: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
@@ -390,7 +391,7 @@ class Mechanism:
         stiff = _springs(self, springs)
         lock = _locked(self, locked, stiff, free_root)
         outs = _outputs(self, outputs)
-        method, threads = batch.check_method(method), batch.check_threads(threads)
+        method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         out = batch.compliance(self, Q, one, stiff, outs, lock, method, threads)
         return out[0] if one else out
@@ -412,7 +413,7 @@ class Mechanism:
         """
         stiff = _springs(self, springs)
         lock = _locked(self, locked, stiff, free_root)
-        method, threads = batch.check_method(method), batch.check_threads(threads)
+        method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         if one:
             return _modes_one(self, Q[0], stiff, lock, payload)
@@ -578,18 +579,23 @@ def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, 
 
     if not mech.constraint_models and not mech.couplings:
         return q0
+    def newton_step(r: np.ndarray, jc: np.ndarray) -> np.ndarray:  # least-norm, the held joints fixed
+        step = np.zeros(model.nv)
+        step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
+        return step
+
+    joints = [model.names[j] for j in range(1, model.njoints)]
     if newton_first and free.any():
         q = q0
         for _ in range(iterations):
             r, jc, worst = residual(q)
             if worst[0] <= 1e-3 * tol:  # Newton converges quadratically: a step more is all but free
                 try:
-                    _check_ranges(mech, q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
+                    _check_ranges(mech, q, joints, "assembled:")
                     return q
                 except UnassembledError:
                     break
-            step = np.zeros(model.nv)
-            step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
+            step = newton_step(r, jc)
             if not np.all(np.isfinite(step)) or np.linalg.norm(step) > 1.0:
                 break
             q = pin.integrate(model, q, step)
@@ -625,16 +631,14 @@ def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, 
             break
         if not free.any():
             break
-        step = np.zeros(model.nv)
-        step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
-        q = pin.integrate(model, q, step)
+        q = pin.integrate(model, q, newton_step(r, jc))
     else:
         worst = residual(q)[2]
     if not worst[0] <= tol:
         raise UnassembledError(f"{mech.name}: the loops do not close from this start: closure {worst[1]!r} is off "
                                f"by {worst[0]:.3e} (tolerance {tol:g}); start nearer, or hold other joints "
                                "(fixed=...)")
-    _check_ranges(mech, q, [model.names[j] for j in range(1, model.njoints)], "assembled:")
+    _check_ranges(mech, q, joints, "assembled:")
     return q
 
 
