@@ -61,9 +61,12 @@ class Gate:
     """Readiness of a group of compiled functions that one call needs (checked on disk at most
     once a second while not ready; once ready, ready for good)."""
 
-    def __init__(self, name: str, *functions: Any):
+    def __init__(self, name: str, *functions: Any, step: str | None = None):
         self.name = name
         self.functions = functions
+        #: The warm-up step (:data:`h4pin.warmup.KEYS`) that compiles them: a background
+        #: warm-up started here compiles it first.
+        self.step = step
         self._ok = False
         self._next = 0.0
 
@@ -89,7 +92,7 @@ class Gate:
             self._ok = True
             return True
         self._next = now + _RECHECK_S
-        start_background()
+        start_background(self.step)
         return False
 
 
@@ -188,9 +191,10 @@ def running() -> bool:
         return False
 
 
-def start_background() -> bool:
+def start_background(first: str | None = None) -> bool:
     """Start the warm-up process unless one runs, one was started here, or ``H4PIN_WARMUP`` is
-    not ``background``; returns whether this call started it."""
+    not ``background``; it compiles step ``first`` (:data:`h4pin.warmup.KEYS`) before the others.
+    Returns whether this call started it."""
     global _started
     if _started or mode() != "background":
         return False
@@ -200,7 +204,8 @@ def start_background() -> bool:
         _started = True
         env = dict(os.environ, H4PIN_WARMUP="inline")
         try:
-            subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", _lock_path()], env=env,
+            first_args = ["--first", first] if first else []
+            subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", _lock_path(), *first_args], env=env,
                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True, close_fds=True)
         except OSError:

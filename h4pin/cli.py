@@ -807,7 +807,8 @@ def warmup(
     use the numpy path while they compile in the background)."""
     from h4pin.warmup import compile_all
 
-    total = compile_all(None if quiet else lambda name, seconds: typer.echo(f"compiled {name} in {seconds:.1f} s"))
+    total = compile_all(None if quiet else lambda name, seconds: typer.echo(f"compiled {name} in {seconds:.1f} s"),
+                        isolate=True)
     typer.echo(f"compiled code cached ({total:.1f} s)")
 
 

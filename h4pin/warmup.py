@@ -15,15 +15,41 @@ not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
 
 import numpy as np
 
+#: The steps' keys, in the default order (order of first need of the H4's commands).
+KEYS = ("configuration", "one", "batch", "frequencies", "fields", "studies", "mechanism")
+#: What each step compiles.
+NAMES = {"configuration": "configuration (h4pin.load)", "one": "compiled pipeline, one pose",
+         "batch": "compiled pipeline, batch", "frequencies": "natural frequencies",
+         "fields": "atlas and sweep fields", "studies": "atlas and sweep, as their commands run",
+         "mechanism": "any mechanism's compiled path (h4pin.elastic.Mechanism)"}
+#: The steps a step's call runs first (it needs a loaded robot).
+_NEEDS = {"one": ("configuration",), "batch": ("configuration",), "frequencies": ("configuration",),
+          "studies": ("configuration",)}
 
-def steps() -> list[tuple[str, Callable[[], object]]]:
-    """The compile steps (name, call), in order of first need."""
+
+def order(first: str | None = None) -> list[str]:
+    """The steps' keys in compile order: step ``first`` (and what it needs) before the others,
+    so that the call that started a background warm-up waits for its own code only (a
+    :class:`h4pin.elastic.Mechanism` user waits 20 s for the generic path, not for the H4's
+    two minutes before it); then the rest in :data:`KEYS` order. ``first`` None or unknown:
+    :data:`KEYS` order."""
+    if first not in KEYS:
+        return list(KEYS)
+    head = [*_NEEDS.get(first, ()), first]
+    return head + [k for k in KEYS if k not in head]
+
+
+def steps(first: str | None = None, only: str | None = None) -> list[tuple[str, Callable[[], object]]]:
+    """The compile steps (name, call), in :func:`order` (``first``'s own steps first); with
+    ``only``, that step and the steps it needs."""
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
@@ -38,13 +64,16 @@ def steps() -> list[tuple[str, Callable[[], object]]]:
     def pose() -> np.ndarray:
         return cf.centre_pose(state["h4"])
 
-    return [("configuration (h4pin.load)", configuration),
-            ("compiled pipeline, one pose", lambda: compliance(state["h4"], pose(), method="kernel")),
-            ("compiled pipeline, batch", lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel")),
-            ("natural frequencies", lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled")),
-            ("atlas and sweep fields", _study_fields),
-            ("atlas and sweep, as their commands run", lambda: _studies(state["h4"])),
-            ("any mechanism's compiled path (h4pin.elastic.Mechanism)", _mechanism)]
+    calls = {"configuration": configuration,
+             "one": lambda: compliance(state["h4"], pose(), method="kernel"),
+             "batch": lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel"),
+             "frequencies": lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled"),
+             "fields": _study_fields,
+             "studies": lambda: _studies(state["h4"]),
+             "mechanism": _mechanism}
+    table = {key: (NAMES[key], call) for key, call in calls.items()}
+    keys = [*_NEEDS.get(only, ()), only] if only in KEYS else order(first)
+    return [table[key] for key in keys]
 
 
 def _mechanism() -> None:
@@ -99,14 +128,34 @@ def _studies(h4) -> None:
     sweep.evaluate(sweep.designs(spec), spec)
 
 
-def compile_all(progress: Callable[[str, float], None] | None = None) -> float:
+def compile_all(progress: Callable[[str, float], None] | None = None, first: str | None = None, *,
+                isolate: bool = False) -> float:
     """Compile every function into numba's cache (loaded instead if it is there); returns the
-    seconds taken. ``progress(step, seconds)`` is called after each step."""
+    seconds taken. ``progress(step, seconds)`` is called after each step; ``first``: the step
+    (:data:`KEYS`) to compile before the others (:func:`order`).
+
+    ``isolate``: each step in a child process of its own, one after the other (what ``h4pin
+    warmup`` and the background warm-up do). numba keeps every module it compiled in memory, so
+    that one process compiling all the steps ends at the sum of their memory (about 690 MB);
+    a process per step ends at the largest step's (about 1 s more a step, to start a process
+    and load what the steps before compiled). Else in this process (its functions are then
+    compiled here too, not only cached)."""
     from h4pin import _jit
 
     t0 = time.perf_counter()
+    if isolate:
+        env = dict(os.environ, H4PIN_WARMUP="inline")
+        for key in order(first):
+            t = time.perf_counter()
+            done = subprocess.run([sys.executable, "-m", "h4pin.warmup", "--step", key, "--quiet"], env=env,
+                                  stdin=subprocess.DEVNULL, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise RuntimeError(f"h4pin warm-up step {NAMES[key]!r} failed:\n{done.stderr.strip()[-2000:]}")
+            if progress is not None:
+                progress(NAMES[key], time.perf_counter() - t)
+        return time.perf_counter() - t0
     with _jit.compiling():
-        for name, call in steps():
+        for name, call in steps(first):
             t = time.perf_counter()
             call()
             if progress is not None:
@@ -114,13 +163,29 @@ def compile_all(progress: Callable[[str, float], None] | None = None) -> float:
     return time.perf_counter() - t0
 
 
+def compile_step(key: str) -> None:
+    """Compile step ``key`` (:data:`KEYS`) in this process, after the steps it needs (loaded from
+    the cache when compiled before)."""
+    from h4pin import _jit
+
+    with _jit.compiling():
+        for _, call in steps(only=key):
+            call()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m h4pin.warmup [--lock PATH] [--quiet]``: the background warm-up holds ``--lock``
-    while it compiles, so that no second process compiles the same cache at once."""
+    """``python -m h4pin.warmup [--lock PATH] [--quiet] [--first STEP]``: the background warm-up
+    holds ``--lock`` while it compiles, so that no second process compiles the same cache at once,
+    and compiles first the step of the call that started it."""
     parser = argparse.ArgumentParser(prog="python -m h4pin.warmup", description=__doc__.splitlines()[0])
     parser.add_argument("--lock", help="lock file to hold while compiling (background warm-up)")
     parser.add_argument("--quiet", action="store_true")
+    parser.add_argument("--first", choices=KEYS, help="compile this step (and what it needs) before the others")
+    parser.add_argument("--step", choices=KEYS, help="compile this step (and what it needs) alone, in this process")
     args = parser.parse_args(argv)
+    if args.step:
+        compile_step(args.step)
+        return 0
     from h4pin.files import release_lock, take_lock
 
     if args.lock and not take_lock(args.lock):
@@ -130,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
             if not args.quiet:
                 print(f"compiled {name} in {seconds:.1f} s", flush=True)
 
-        total = compile_all(say)
+        total = compile_all(say, args.first, isolate=True)
         if not args.quiet:
             print(f"h4pin: compiled code cached ({total:.1f} s)", flush=True)
     finally:

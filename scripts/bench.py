@@ -6,7 +6,8 @@ asserted by the tests).
 Rows: the numpy batch path (eq. 30 with the inverse geometry), the compiled pipeline
 (:mod:`h4pin.stiffness.pipeline`: batch on 1 and 2 threads, one pose, with terms, a robot with all
 12 element kinds), the Pinocchio route, a straightforward per-pose numpy implementation of eq. 30
-(loops, np.cross, explicit inverses: what one writes first), the two validation routes, the
+(loops, np.cross, explicit inverses: what one writes first; and that code compiled by numba, a
+bare call of it beside one pose through h4pin.compliance), the two validation routes, the
 natural frequencies (the compiled twin and the Pinocchio route), an atlas with the first
 frequency; optionally a 1e7-pose streaming run (``--big``), the Dask overhead per task
 (``--dask``), a design sweep of 10 000 designs x 1 000 poses (``--sweep``) and the tolerance
@@ -30,78 +31,24 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from independent_kernel import constants as independent_constants
+from independent_kernel import independent_compliance
 
 import h4pin
 from h4pin import verdicts
 from h4pin.checks import deformed, statics
 from h4pin.description.elements import ILLUSTRATIVE
-from h4pin.description.params import LEG_LATERAL, H4Params
+from h4pin.description.params import H4Params
 from h4pin.kinematics.closed_form import centre_pose
-from h4pin.stiffness import frequencies, kernel
+from h4pin.stiffness import frequencies, kernel, pipeline
 from h4pin.stiffness.api import compliance
 
 
 def naive_compliance(p: H4Params, pose: np.ndarray) -> np.ndarray:
-    """Eq. 30 ("paper" model) for one pose, written plainly with per-bar loops."""
-    x, y, z, th = pose
-    d = np.array([x, y, z])
-    rz = np.array([[np.cos(th), -np.sin(th), 0], [np.sin(th), np.cos(th), 0], [0, 0, 1]])
-    zz = np.array([0.0, 0.0, 1.0])
-    c = [d + rz @ p.DC[:, k] for k in range(2)]
-    q = np.zeros(4)
-    A, B, Aij, Bij = [], [], [], []
-    for i in range(4):
-        k = LEG_LATERAL[i]
-        u = p.U[:, i]
-        a = np.cross(u, zz)
-        b = c[k] + p.DB[:, i] - p.DC[:, k]
-        e = b - p.P[:, i]
-        rhs = (e @ e + p.r[i] ** 2 - p.l[2 * i] ** 2) / (2 * p.r[i])
-        phi = np.arctan2(-e[2], e @ a)
-        for sign in (1, -1):
-            q[i] = phi + sign * np.arccos(rhs / np.hypot(e @ a, e[2]))
-            ai = p.P[:, i] + p.r[i] * (a * np.cos(q[i]) - zz * np.sin(q[i]))
-            if u @ np.cross(ai - p.P[:, i], b - ai) > 0:
-                break
-        A.append(ai)
-        B.append(b)
-        for s in (1, -1):
-            Aij.append(ai + s * p.half_width[i] * u)
-            Bij.append(b + s * p.half_width[i] * u)
-    m1, m2, m3, m4 = np.zeros((8, 8)), np.zeros((8, 32)), np.zeros((32, 4)), np.zeros((32, 8))
-    jx, jq = np.zeros((4, 4)), np.zeros((4, 4))
-    lengths = np.zeros(8)
-    for i in range(4):
-        k = LEG_LATERAL[i]
-        w = B[i] - A[i]
-        jx[i] = np.r_[w, w @ np.cross(zz, c[k] - d)]
-        jq[i, i] = w @ np.cross(p.U[:, i], A[i] - p.P[:, i])
-        ri = (p.P[:, i] - A[i]) / np.linalg.norm(p.P[:, i] - A[i])
-        wi = w / np.linalg.norm(w)
-        for j in range(2):
-            n = 2 * i + j
-            wij = Bij[n] - Aij[n]
-            lengths[n] = np.linalg.norm(wij)
-            t = c[k] - Bij[n]
-            m1[n, :3] = wij
-            m1[n, 3:6] = np.cross(wij, d - c[k] + t)
-            m1[n, 6 + k] = np.cross(wij, t)[2]
-            m2[n, 3 * n:3 * n + 3] = wij
-            m2[n, 24 + n] = lengths[n]
-            pij = p.P[:, i] - Aij[n]
-            m3[3 * n:3 * n + 3, i] = np.cross(pij, p.U[:, i])
-            for j2 in range(2):
-                pij2 = p.P[:, i] - Aij[2 * i + j2]
-                m4[3 * n:3 * n + 3, 2 * i + j2] = np.cross(pij, ri) * (np.cross(pij2, ri) @ wi)
-    m5 = np.vstack([np.zeros((24, 8)), np.eye(8)])
-    r = np.zeros((4, 8))
-    r[[0, 1, 2, 3], [0, 1, 2, 5]] = 1
-    j = np.linalg.inv(jx) @ jq
-    jb_inv = np.linalg.inv(m1.T @ np.diag(1 / lengths))
-    cc = p.compliances()
-    inner = (m3 @ np.diag(cc["control"] + cc["bending"]) @ j.T @ r
-             + m4 @ np.diag(np.repeat(cc["torsion"], 2)) @ jb_inv + m5 @ np.diag(cc["tension"]) @ jb_inv)
-    return np.linalg.inv(m1) @ m2 @ inner
+    """Eq. 30 ("paper" model) for one pose, written plainly with per-bar loops, ``np.cross`` and
+    explicit inverses: the independent kernel of ``independent_kernel.py`` run by the interpreter
+    (its Python source, numpy per statement), its constants read per call."""
+    return independent_compliance.py_func(pose, *independent_constants(p))
 
 
 def best_of(repeat: int, fn) -> float:
@@ -337,6 +284,25 @@ def main() -> None:
             section(args, h4)
 
 
+def bare_calls(h4: h4pin.H4, x: np.ndarray, repeat: int) -> tuple[float, float]:
+    """Seconds of one bare compiled call at pose x: of the independent kernel
+    (``independent_kernel.py``: the naive eq. 30 ported to numba, no code of h4pin's), and of
+    h4pin's own one-pose entry (:func:`h4pin.stiffness.pipeline.one` through its dispatcher,
+    outputs allocated once, no check and no result object): the floor under
+    ``h4pin.compliance(h4, pose)``, which allocates, checks and wraps."""
+    args = independent_constants(h4.params)
+    independent_compliance(x, *args)
+    kern = kernel.prepare(h4.geometry)
+    xr = np.array(x)
+    xr.setflags(write=False)
+    out = (np.empty((8, 8)), np.empty(4), np.empty((4, 8, 8)), False, np.empty(pipeline.NX), False)
+    pipeline.one(xr, kern.packed, kern.elements, pipeline.PAPER, *out)
+    n = 20_000
+    t_ind = best_of(repeat, lambda: [independent_compliance(x, *args) for _ in range(n // 10)]) / (n // 10)
+    t_one = best_of(repeat, lambda: [pipeline.one(xr, kern.packed, kern.elements, 0, *out) for _ in range(n)]) / n
+    return t_ind, t_one
+
+
 def speed_timings(h4: h4pin.H4, poses: np.ndarray, repeat: int, fatlas_side: int) -> dict:
     """Every row of the main table, in seconds a pose (the kernel rows: a dict by (model, threads));
     ``fatlas_side``: the side of the frequency atlas's grid."""
@@ -349,6 +315,7 @@ def speed_timings(h4: h4pin.H4, poses: np.ndarray, repeat: int, fatlas_side: int
     t["single_pin"] = best_of(repeat, lambda: [compliance(h4, x, "paper", method="pinocchio")
                                                for x in few[:500]]) / 500
     t["naive"] = best_of(repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
+    t["bare_independent"], t["bare_one"] = bare_calls(h4, few[0], repeat)
     t["statics"] = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t["fd"] = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
     t["kernel"], t["one"] = kernel_rows(h4, poses, repeat)
@@ -384,9 +351,10 @@ def check_agreement(h4: h4pin.H4, poses: np.ndarray) -> tuple[float, float, floa
     few = poses[:50]
     ours = compliance(h4, few, "paper", method="closed_form").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few])
-    agree = np.max(np.abs(ours - naive)) / np.max(np.abs(ours))
+    independent = np.array([independent_compliance(x, *independent_constants(h4.params)) for x in few])
+    agree = max(np.max(np.abs(ours - naive)), np.max(np.abs(ours - independent))) / np.max(np.abs(ours))
     if agree > 1e-10:
-        raise SystemExit(f"naive eq. 30 and h4pin disagree: {agree:.1e} relative")
+        raise SystemExit(f"naive eq. 30 (numpy or compiled) and h4pin disagree: {agree:.1e} relative")
     fast = kernel.compliance_batch(h4.geometry, poses, "paper")
     ref = compliance(h4, poses, "paper", method="closed_form").matrix
     agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
@@ -408,6 +376,8 @@ def _speed_rows(t: dict, n_poses: int) -> list[tuple[str, float]]:
         ("  the same, numpy path (statics route per pose, as before)", t["el_numpy"]),
         ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t["atlas"]),
         ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t["naive"]),
+        ("  the same compiled by numba (independent kernel), a bare call", t["bare_independent"]),
+        ("h4pin's one-pose compiled entry, a bare call (no check, no result)", t["bare_one"]),
         ("validation: Newton-Euler statics route", t["statics"]),
         ("validation: finite-difference route (non-linear)", t["fd"]),
         ("h4pin.compliance(h4, poses, terms=True): batch with terms", t["terms"]),
@@ -483,6 +453,8 @@ def targets(t: dict) -> None:
         ("  the same into out= (no page faults)", kern["into out= paper", 1] / kern["into out= paper", 2], 1.9, "x",
          True),
         ("one pose, h4pin.compliance", t["single"] * 1e6, 4.0, "us", False),
+        ("  / a bare call of the independent kernel", t["single"] / t["bare_independent"], 1.0, "x", False),
+        ("  / a bare call of h4pin's one-pose entry", t["single"] / t["bare_one"], 1.0, "x", False),
         ("every element kind / elements off, batch", t["el_batch"] / t["el_off"], 2.0, "x", False),
         ("modes, first four frequencies, 1 core", t["modes"]["twin, batch, first four"] * 1e6, 20.0, "us", False),
         ("terms=True batch / default batch", t["terms"] / t["default"][2], 1.3, "x", False),

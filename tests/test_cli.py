@@ -27,9 +27,16 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
 
 
 def script(name: str):
+    """Script ``scripts/<name>.py`` as a module, its folder on ``sys.path`` as when Python runs it
+    (``bench.py`` imports ``independent_kernel.py`` beside it)."""
+    folder = str(ROOT / "scripts")
     spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, folder)
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(folder)
     return module
 
 

@@ -92,13 +92,45 @@ def test_warmup_compiles_every_gated_function():
     """The warm-up's steps compile every function a gate waits for (else a process would stay on
     the fallback for good): run in this process, every gate is ready afterwards."""
     from h4pin import warmup
+    from h4pin.elastic import batch
     from h4pin.kinematics import pinocchio as kin
     from h4pin.stiffness import frequencies, kernel
 
     warmup.compile_all()
-    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES]
+    gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE]
     for gate in gates:
         assert all(f.signatures for f in gate.functions), gate.name
+        assert gate.step in warmup.KEYS, gate.name
+
+
+def test_warmup_compiles_the_calling_step_first():
+    """A background warm-up started by a gate compiles that gate's step (and the loaded robot it
+    needs) before the others, and every step once; the process is started with ``--first``."""
+    from h4pin import warmup
+
+    assert warmup.order() == list(warmup.KEYS) == warmup.order("no such step")
+    for key in warmup.KEYS:
+        got = warmup.order(key)
+        assert sorted(got) == sorted(warmup.KEYS), key
+        assert got.index(key) <= 1, key  # first, or right after the robot it needs
+    assert warmup.order("mechanism")[0] == "mechanism"
+    assert warmup.order("frequencies")[:2] == ["configuration", "frequencies"]
+    names = [name for name, _ in warmup.steps("mechanism")]
+    assert names[0].startswith("any mechanism") and len(names) == len(warmup.KEYS)
+
+
+def test_background_start_names_the_first_step(monkeypatch):
+    """``start_background(step)`` starts ``python -m h4pin.warmup --first step`` (once)."""
+    from h4pin import _jit
+
+    calls = []
+    monkeypatch.setattr(_jit, "_started", False)
+    monkeypatch.setattr(_jit, "running", lambda: False)
+    monkeypatch.setattr(_jit, "mode", lambda: "background")
+    monkeypatch.setattr(_jit.subprocess, "Popen", lambda args, **kw: calls.append(args))
+    assert _jit.start_background("mechanism") is True
+    assert _jit.start_background("one") is False  # one warm-up per process
+    assert len(calls) == 1 and calls[0][-2:] == ["--first", "mechanism"] and "h4pin.warmup" in calls[0]
 
 
 @pytest.mark.slow
@@ -166,3 +198,27 @@ def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monke
         assert after["closure"] == before["closure"], edited
         before = after
     _numba_cache._imports.cache_clear()
+
+
+def test_isolated_warmup_runs_one_process_a_step(monkeypatch):
+    """``compile_all(isolate=True)`` (``h4pin warmup``, the background warm-up) runs each step in a
+    child process of its own, in :func:`h4pin.warmup.order`; a failed step raises, naming it."""
+    from h4pin import warmup
+
+    calls, seen = [], []
+
+    class Done:
+        returncode, stderr = 0, ""
+
+    def run(args, **kw):
+        calls.append(args)
+        assert kw["env"]["H4PIN_WARMUP"] == "inline"
+        return Done()
+
+    monkeypatch.setattr(warmup.subprocess, "run", run)
+    warmup.compile_all(lambda name, secs: seen.append(name), "frequencies", isolate=True)
+    assert [a[a.index("--step") + 1] for a in calls] == warmup.order("frequencies")
+    assert seen == [warmup.NAMES[k] for k in warmup.order("frequencies")]
+    Done.returncode, Done.stderr = 1, "boom"
+    with pytest.raises(RuntimeError, match="(?s)configuration .*failed.*boom"):
+        warmup.compile_all(isolate=True)

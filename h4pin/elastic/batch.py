@@ -29,7 +29,7 @@ from h4pin.elastic.payload import Payload
 from h4pin.errors import H4Error, ParameterError
 
 METHODS = ("auto", "compiled", "pinocchio")
-GATE = _jit.Gate("generic mechanism path", compiled.batch)
+GATE = _jit.Gate("generic mechanism path", compiled.batch, step="mechanism")
 #: Configurations per block handed to one thread.
 BLOCK = 64
 #: Bytes a configuration of a batch holds besides its outputs (its copy, status, coupling rows),

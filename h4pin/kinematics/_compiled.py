@@ -106,10 +106,19 @@ def configuration(q_out, q, D, R, omega, P, u, A0, lat, C0, b, v, e1, e2, p0, id
         q_out[idx_u[n, 1]] = beta[n]
     # World placement of the central bar: x -> R (x - D0) + D applied to its reference X0;
     # the free-flyer's motion is X0^-1 * world.
-    Rw = R @ X0R
-    tw = R @ (X0t - D0) + D
-    Rm = X0R.T @ Rw
-    tm = X0R.T @ (tw - X0t)
+    # (3 x 3 products written out: numba's ``@`` compiles a BLAS call and its checks per shape)
+    Rw = np.empty((3, 3))
+    Rm = np.empty((3, 3))
+    tw = np.empty(3)
+    tm = np.empty(3)
+    for r in range(3):
+        tw[r] = D[r] + R[r, 0] * (X0t[0] - D0[0]) + R[r, 1] * (X0t[1] - D0[1]) + R[r, 2] * (X0t[2] - D0[2])
+        for c in range(3):
+            Rw[r, c] = R[r, 0] * X0R[0, c] + R[r, 1] * X0R[1, c] + R[r, 2] * X0R[2, c]
+    for r in range(3):
+        tm[r] = X0R[0, r] * (tw[0] - X0t[0]) + X0R[1, r] * (tw[1] - X0t[1]) + X0R[2, r] * (tw[2] - X0t[2])
+        for c in range(3):
+            Rm[r, c] = X0R[0, r] * Rw[0, c] + X0R[1, r] * Rw[1, c] + X0R[2, r] * Rw[2, c]
     tr = Rm[0, 0] + Rm[1, 1] + Rm[2, 2]
     if tr > 0.0:
         s = 0.5 / math.sqrt(tr + 1.0)

@@ -35,7 +35,7 @@ from h4pin.verdicts import CLOSURE_SINGULAR_COND, raise_for_status
 
 _PACKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 #: The compiled configuration is cached (else its interpreted twin runs: :mod:`h4pin._jit`).
-CONFIGURATION = _jit.Gate("configuration", _compiled.configuration_packed)
+CONFIGURATION = _jit.Gate("configuration", _compiled.configuration_packed, step="configuration")
 
 
 class Kinematics(NamedTuple):

@@ -774,7 +774,7 @@ def frequencies_run(poses, start, stop, q, status, X, G, EG, MP, CF, CI, freq, c
 
 #: Whether :func:`frequencies_run` is compiled (:mod:`h4pin._jit`); until then :func:`modes` takes
 #: the Pinocchio route.
-FREQUENCIES = _jit.Gate("natural frequencies", frequencies_run)
+FREQUENCIES = _jit.Gate("natural frequencies", frequencies_run, step="frequencies")
 #: Largest y and spring counts of a robot with every element on (:func:`_y_layout`).
 NY, NS = 16 + 6 * 14, 16 + 10 * 2 + 5 * 4 + 8 * 4 + 2 * 4
 

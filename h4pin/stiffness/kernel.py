@@ -250,8 +250,8 @@ def model_code(model: str) -> int:
 #: Whether the pipeline's entries are compiled (:mod:`h4pin._jit`): until then
 #: ``compliance(method="auto")`` takes the numpy reference instead of compiling in the call. One
 #: pose (:func:`h4pin.stiffness.pipeline.one`) is compiled first.
-ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one)
-BATCH = _jit.Gate("compiled pipeline, batch", pipeline.run)
+ONE = _jit.Gate("compiled pipeline, one pose", pipeline.one, step="one")
+BATCH = _jit.Gate("compiled pipeline, batch", pipeline.run, step="batch")
 
 _POOL: list[concurrent.futures.ThreadPoolExecutor] = []
 _ENTRIES: dict[str, Any] = {}

@@ -4,7 +4,7 @@ compliant elements, from a pose to K, written once (numba) for every compiled ca
 
 One pose and a batch run the same functions: :func:`run` takes poses ``start .. stop - 1`` of an
 (N, 4) array in blocks of at most :data:`LANES` poses (one pose is a block of one lane). The
-stages, in order (each a function of its own, inlined into :func:`run`):
+stages, in order (each a compiled function of its own, called by :func:`run`):
 
 1. :func:`_legs`, :func:`_angles`: the closed-form inverse geometry (elbow out) and the
    unreachable and joint-limit masks;
@@ -112,7 +112,7 @@ PAPER, CONSISTENT = 0, 1
 #: a block's arrays (about 300 KB) stay in L2.
 LANES = 64
 
-_STAGE = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+_STAGE = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
 _SING = SINGULAR_COND
 
 # Rows of the block scratch S (rows x LANES).
@@ -920,9 +920,12 @@ X_Y, X_F, X_S = 0, 64, 64 + _XF
 
 def _entry(lanes: int):
     """The pipeline over poses ``start .. stop - 1`` in blocks of ``lanes`` lanes, ``lanes`` a
-    constant of the compiled code (a closure: each entry is compiled on its own, the stages
-    inlined straight into it; a shared inlined block function costs numba 1.7 times the compile
-    time and twice the memory)."""
+    constant of the compiled code (a closure: each entry is compiled on its own). The stages are
+    plain calls, each compiled once per lane count (numba types a constant argument as a literal
+    and compiles a version for it, so every lane loop keeps its constant trip count). They were
+    inlined by numba (``inline="always"``) until this release: numba copies and types an inlined
+    body again at every call site, which cost 40 % more compile time and 220 MB more memory for
+    0.4 us less at one pose (docs/architecture.md)."""
 
     def entry(poses, start, stop, G, EG, model, K, qo, cond, status, T, want_terms, J, want_jac, Xo,
               want_x):  # pragma: no cover - compiled
