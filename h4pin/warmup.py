@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -190,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.lock and not take_lock(args.lock):
         return 0  # another process compiles this cache now
+    # A SIGTERM ends the step's child too (subprocess.run kills its child on the SystemExit).
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     try:
         def say(name: str, seconds: float) -> None:
             if not args.quiet:
