@@ -322,7 +322,7 @@ def _length(opos):
 @njit(cache=True, nogil=True)
 def _closure_rows(ancestor, col_joint, c_joint, c_rot, c_pos, c_six, orot, opos, jac, col, length, tol, a):
     """Scaled closure rows into ``a``; False when a closure is off by more than ``tol``."""
-    row = 0
+    row = 0 * len(c_six)  # a run-time 0: a constant argument compiles its callee's own version
     r1, r2, rel = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     x1, x2 = np.zeros(3), np.zeros(3)
     for i in range(len(c_six)):
@@ -501,7 +501,8 @@ def _output_rows(ancestor, col_joint, frame_joint, frame_rot, frame_pos, frame_r
                     for u in range(6):
                         block[u, c] = jac[u, c]
         else:
-            _point_rows(ancestor, col_joint, jac, j, xf, 1.0, block, 0, True)
+            # (row and six as run-time values, as the closures': constants compile another version)
+            _point_rows(ancestor, col_joint, jac, j, xf, 1.0, block, 0 * j, frame_ref[f] != WORLD)
             if frame_ref[f] == LOCAL:
                 for c in range(jac.shape[1]):
                     for h in (0, 3):

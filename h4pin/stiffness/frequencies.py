@@ -447,10 +447,11 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
     Rz[2, 0], Rz[2, 1], Rz[2, 2] = 0.0, 0.0, 1.0
     omega = W[19]
     omega[0] = omega[1] = -th
-    alpha, beta = _compiled.universal_packed(q, D, Rz, omega, CF, CI)
+    v3 = W[20]
+    v3[0], v3[1], v3[2] = D[0], D[1], D[2]  # writable, as the configuration's: one compiled version
+    alpha, beta = _compiled.universal_packed(q, v3, Rz, omega, CF, CI)
     A = Xrow[X_S + S_A:X_S + S_A + 24].reshape(8, 3)
     B = Xrow[X_S + S_B:X_S + S_B + 24].reshape(8, 3)
-    v3 = W[20]
     # axes rows: 0-3 u_i, 4-7 A_i, 8-11 e_i (forearm axis), 12-19 a1_n, 20-27 a2_n, 28-29 lateral
     # axes, 30-45 the sites' points (joint k, arm i, mount i, tip i)
     for i in range(4):
@@ -527,6 +528,7 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
 def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
     """The springs' columns of R (y per unit deformation, times sqrt(c)); returns (ny, ns)."""
     axes, sy, R, us, Xs = W[2], W[4], W[6], W[13], W[14]
+    lane1 = Xs.shape[1]  # 1 (one lane), at run time: a constant would compile the callees again
     Y = Xrow[X_Y:X_Y + 64].reshape(8, 8)
     S = Xrow[X_S:X_S + S_ROWS].reshape(S_ROWS, 1)
     A = Xrow[X_S + S_A:X_S + S_A + 24].reshape(8, 3)
@@ -569,11 +571,11 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
             if c == 0.0:
                 continue
             for k in range(2):  # the axis into Xs[EA], the second axis into Xs[EA + 3] (one inlined copy)
-                pipeline.element_axis(G, axis if k == 0 else normal, s, 1, S, Xs, EA + 3 * k)
+                pipeline.element_axis(G, axis if k == 0 else normal, s, lane1, S, Xs, EA + 3 * k)
             e0, e1, e2 = Xs[EA, 0], Xs[EA + 1, 0], Xs[EA + 2, 0]
             a0, a1, a2, b0, b1, b2 = pipeline.form_frame(pipeline.form_plane(form), e0, e1, e2, Xs[EA + 3, 0],
                                                          Xs[EA + 4, 0], Xs[EA + 5, 0])
-            pipeline.site_point(G, site, s, 0, 1, S, Xs)
+            pipeline.site_point(G, site, s, lane1 - 1, lane1, S, Xs)
             o = Xs[EA:EA + 3, 0].copy()
             y0 = sy[stype, s]
             for p in range(pipeline.form_count(form)):
@@ -606,14 +608,17 @@ def _springs(Xrow, G, EG, W):  # noqa: C901  # pragma: no cover - compiled
 def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
     """M_y = sum_b J_b^T M6_b J_b: the bodies' twists per unit y coordinate."""
     O, M6, axes, Sinv, sy, My, J, Jc, cols = W[0], W[1], W[2], W[3], W[4], W[5], W[9], W[10], W[11]
-    D = x[:3]
+    D = W[20]  # x[:3], writable as the other points: one compiled version of the callees
+    D[0], D[1], D[2] = x[0], x[1], x[2]
     B = Xrow[X_S + S_B:X_S + S_B + 24].reshape(8, 3)
     My[:ny, :ny] = 0.0
+    zero = 0 * ny  # a run-time 0 and 1: a constant argument would compile a version of its own
+    one = zero + 1
     for b in (20, 23):  # the central bar (at its origin) and the payload (at D): dtp's first six
-        _add_body(My, M6[b], J, cols, _site_columns(J, cols, 0, 0, O[b], D))
+        _add_body(My, M6[b], J, cols, _site_columns(J, cols, zero, zero, O[b], D))
     for k in range(2):  # lateral bar k: dtp's first six, its revolute, its joint site
         b = 21 + k
-        nc = _site_columns(J, cols, 0, 0, O[b], D)
+        nc = _site_columns(J, cols, zero, zero, O[b], D)
         _put(J, nc, 0.0, 0.0, 0.0, axes[28 + k, 0], axes[28 + k, 1], axes[28 + k, 2])
         cols[nc] = 6 + k
         nc += 1
@@ -625,9 +630,9 @@ def _mass_matrix(x, Xrow, G, ny, W):  # pragma: no cover - compiled
         # the forearm: phi_i and the mount site
         w0, w1, w2 = axes[i, 0], axes[i, 1], axes[i, 2]
         v0, v1, v2 = _cr(w0, w1, w2, O[i, 0] - P[0], O[i, 1] - P[1], O[i, 2] - P[2])
-        _put(J, 0, v0, v1, v2, w0, w1, w2)
+        _put(J, zero, v0, v1, v2, w0, w1, w2)
         cols[0] = 8 + 2 * i
-        nc = _site_columns(J, cols, 1, sy[2, i], O[i], axes[38 + i])
+        nc = _site_columns(J, cols, one, sy[2, i], O[i], axes[38 + i])
         _add_body(My, M6[i], J, cols, nc)
         for j in range(2):
             _bar_columns(i, 2 * i + j, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols)
@@ -690,7 +695,7 @@ def _bar_columns(i, n, k, D, O, axes, B, Sinv, sy, M6, My, J, Jc, cols):  # noqa
     ax, ay, az = axes[4 + i, 0], axes[4 + i, 1], axes[4 + i, 2]  # A_i
     bx, by, bz = B[n, 0], B[n, 1], B[n, 2]
     o1x, o1y, o1z = O[4 + n, 0], O[4 + n, 1], O[4 + n, 2]
-    nc = 0
+    nc = 0 * n  # a run-time 0: a constant argument would compile the callees' versions of their own
     for c in range(9 + 24):  # 0..5 dtp, 6 omega_k, 7 phi, 8 tau, then the mount, tip, joint and arm sites
         vbx = vby = vbz = 0.0  # the bar end B's velocity
         wtx = wty = wtz = 0.0  # the tip's rotation and its velocity at A_i

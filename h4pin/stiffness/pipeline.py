@@ -1004,11 +1004,12 @@ def one(pose, G, EG, model, K, q, T, want_terms, Xo, want_x):  # pragma: no cove
     straight-line code (a call of :func:`run` for one pose runs the vectorised loops' set-ups and
     remainders, 4 to 6 us; this, about 1.5 us). The caller allocates the outputs: a compiled
     function that returns arrays pays for boxing them."""
-    cs = np.empty(2)  # the condition and the status (a float), one allocation
+    cond = np.empty(1)
+    status = np.empty(1, dtype=np.int8)  # int8 as the batch's: one compiled version of the stages after
     Kr = K.reshape(1, 8, 8)
-    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, Kr, q.reshape(1, 4), cs[0:1], cs[1:2],
+    _run1(pose.reshape(1, 4), 0, 1, G, EG, model, Kr, q.reshape(1, 4), cond, status,
           T.reshape(1, T.shape[0], 8, 8), want_terms, Kr, False, Xo.reshape(1, Xo.shape[0]), want_x)  # no J: K's
-    return cs[0], np.int8(cs[1])
+    return cond[0], status[0]
 
 
 __all__ = ["CONSISTENT", "EA", "FASTMATH", "F_GC", "F_TV", "LANES", "NX", "PAPER", "S_A", "S_B", "S_LW", "S_ROWS",
