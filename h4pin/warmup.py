@@ -34,6 +34,11 @@ NAMES = {"configuration": "configuration (h4pin.load)", "one": "compiled pipelin
 #: The steps a step's call runs first (it needs a loaded robot).
 _NEEDS = {"one": ("configuration",), "batch": ("configuration",), "frequencies": ("configuration",),
           "studies": ("configuration",)}
+#: The steps that share a process in an isolated warm-up (:func:`compile_all`), when they come one
+#: after the other: numba compiles its own helpers (``np.empty``, ``reshape``, their errors...)
+#: again in every process, so a process per step costs about 8 s a step more.
+GROUPS = {"configuration": "compliance", "one": "compliance", "batch": "compliance", "frequencies": "studies",
+          "fields": "studies", "studies": "studies", "mechanism": "mechanism"}
 
 
 def order(first: str | None = None) -> list[str]:
@@ -48,9 +53,21 @@ def order(first: str | None = None) -> list[str]:
     return head + [k for k in KEYS if k not in head]
 
 
-def steps(first: str | None = None, only: str | None = None) -> list[tuple[str, Callable[[], object]]]:
+def chunks(first: str | None = None) -> list[list[str]]:
+    """:func:`order` cut into the runs of steps of one :data:`GROUPS` group (a process each in
+    an isolated warm-up)."""
+    out: list[list[str]] = []
+    for key in order(first):
+        if out and GROUPS[out[-1][-1]] == GROUPS[key]:
+            out[-1].append(key)
+        else:
+            out.append([key])
+    return out
+
+
+def steps(first: str | None = None, only: list[str] | None = None) -> list[tuple[str, Callable[[], object]]]:
     """The compile steps (name, call), in :func:`order` (``first``'s own steps first); with
-    ``only``, that step and the steps it needs."""
+    ``only`` (keys), those steps and the steps they need, in :data:`KEYS` order."""
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
@@ -73,7 +90,11 @@ def steps(first: str | None = None, only: str | None = None) -> list[tuple[str, 
              "studies": lambda: _studies(state["h4"]),
              "mechanism": _mechanism}
     table = {key: (NAMES[key], call) for key, call in calls.items()}
-    keys = [*_NEEDS.get(only, ()), only] if only in KEYS else order(first)
+    if only is None:
+        keys = order(first)
+    else:
+        wanted = {k for key in only for k in (*_NEEDS.get(key, ()), key)}
+        keys = [k for k in KEYS if k in wanted]
     return [table[key] for key in keys]
 
 
@@ -135,25 +156,18 @@ def compile_all(progress: Callable[[str, float], None] | None = None, first: str
     seconds taken. ``progress(step, seconds)`` is called after each step; ``first``: the step
     (:data:`KEYS`) to compile before the others (:func:`order`).
 
-    ``isolate``: each step in a child process of its own, one after the other (what ``h4pin
-    warmup`` and the background warm-up do). numba keeps every module it compiled in memory, so
-    that one process compiling all the steps ends at the sum of their memory (about 690 MB);
-    a process per step ends at the largest step's (about 1 s more a step, to start a process
-    and load what the steps before compiled). Else in this process (its functions are then
-    compiled here too, not only cached)."""
+    ``isolate``: the steps in child processes, one after the other, a process for each run of
+    steps of one :data:`GROUPS` group (:func:`chunks`; what ``h4pin warmup`` and the background
+    warm-up do). numba keeps every module it compiled in memory, so that one process compiling
+    all the steps ends at the sum of their memory (about 690 MB); a process per group ends at the
+    largest group's (about 420 MB). Else in this process (its functions are then compiled here
+    too, not only cached)."""
     from h4pin import _jit
 
     t0 = time.perf_counter()
     if isolate:
-        env = dict(os.environ, H4PIN_WARMUP="inline")
-        for key in order(first):
-            t = time.perf_counter()
-            done = subprocess.run([sys.executable, "-m", "h4pin.warmup", "--step", key, "--quiet"], env=env,
-                                  stdin=subprocess.DEVNULL, capture_output=True, text=True)
-            if done.returncode != 0:
-                raise RuntimeError(f"h4pin warm-up step {NAMES[key]!r} failed:\n{done.stderr.strip()[-2000:]}")
-            if progress is not None:
-                progress(NAMES[key], time.perf_counter() - t)
+        for chunk in chunks(first):
+            run_child(chunk, progress)
         return time.perf_counter() - t0
     with _jit.compiling():
         for name, call in steps(first):
@@ -164,14 +178,51 @@ def compile_all(progress: Callable[[str, float], None] | None = None, first: str
     return time.perf_counter() - t0
 
 
-def compile_step(key: str) -> None:
-    """Compile step ``key`` (:data:`KEYS`) in this process, after the steps it needs (loaded from
-    the cache when compiled before)."""
+_MARK = "h4pin-warmup-step"
+
+
+def run_child(keys: list[str], progress: Callable[[str, float], None] | None) -> None:
+    """Steps ``keys`` in a child process (``--steps``), its progress passed on as it comes; a
+    failure raises, naming the step that failed and the end of the child's output."""
+    env = dict(os.environ, H4PIN_WARMUP="inline")
+    # Not ``-m h4pin.warmup``: run as ``__main__``, the same steps compiled 8-10 s slower (measured,
+    # one pose: 49.7 s against 40.0 s through main() in the same hour).
+    args = [sys.executable, "-c", "import sys; from h4pin.warmup import main; sys.exit(main(sys.argv[1:]))",
+            "--steps", ",".join(keys)]
+    other: list[str] = []
+    done: list[str] = []
+    with subprocess.Popen(args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          text=True) as child:
+        assert child.stdout is not None
+        for line in child.stdout:
+            mark, _, rest = line.partition(" ")
+            key, _, secs = rest.strip().partition(" ")
+            if mark == _MARK and key in NAMES:
+                done.append(key)
+                if progress is not None:
+                    progress(NAMES[key], float(secs))
+            else:
+                other.append(line)
+    if child.returncode != 0:
+        failed = next((k for k in keys if k not in done), keys[-1])
+        tail = "".join(other).strip()[-2000:]
+        raise RuntimeError(f"h4pin warm-up step {NAMES.get(failed, failed)!r} failed:\n{tail}")
+
+
+def compile_steps(keys: list[str], report: Callable[[str, float], None] | None = None) -> None:
+    """Compile steps ``keys`` (:data:`KEYS`) in this process, after the steps they need (loaded
+    from the cache when compiled before); ``report(key, seconds)`` after each of ``keys``."""
     from h4pin import _jit
 
+    wanted = set(keys)
+    table = dict(zip([k for k in KEYS if k in {n for key in keys for n in (*_NEEDS.get(key, ()), key)}],
+                     steps(only=keys), strict=True))
     with _jit.compiling():
-        for _, call in steps(only=key):
+        for key, (_, call) in table.items():
+            t = time.perf_counter()
             call()
+            if report is not None and key in wanted:
+                report(key, time.perf_counter() - t)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -182,10 +233,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--lock", help="lock file to hold while compiling (background warm-up)")
     parser.add_argument("--quiet", action="store_true")
     parser.add_argument("--first", choices=KEYS, help="compile this step (and what it needs) before the others")
-    parser.add_argument("--step", choices=KEYS, help="compile this step (and what it needs) alone, in this process")
+    parser.add_argument("--steps", help="compile these steps (comma-separated keys, and what they need) in this "
+                                         "process, printing a line per step (an isolated warm-up's child)")
     args = parser.parse_args(argv)
-    if args.step:
-        compile_step(args.step)
+    if args.steps:
+        keys = args.steps.split(",")
+        if not set(keys) <= set(KEYS):
+            parser.error(f"--steps: unknown step in {args.steps!r}; the steps are {', '.join(KEYS)}")
+        compile_steps(keys, lambda key, secs: print(f"{_MARK} {key} {secs:.3f}", flush=True))
         return 0
     from h4pin.files import release_lock, take_lock
 

@@ -200,25 +200,20 @@ def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monke
     _numba_cache._imports.cache_clear()
 
 
-def test_isolated_warmup_runs_one_process_a_step(monkeypatch):
-    """``compile_all(isolate=True)`` (``h4pin warmup``, the background warm-up) runs each step in a
-    child process of its own, in :func:`h4pin.warmup.order`; a failed step raises, naming it."""
+def test_isolated_warmup_runs_a_process_a_group():
+    """``compile_all(isolate=True)`` (``h4pin warmup``, the background warm-up) runs the steps in
+    :func:`h4pin.warmup.order`, a child process for each run of one group, and passes each step's
+    progress on; a child that fails raises, naming its step. (The cache is full here: the
+    test above compiled everything, so each child only loads.)"""
     from h4pin import warmup
 
-    calls, seen = [], []
-
-    class Done:
-        returncode, stderr = 0, ""
-
-    def run(args, **kw):
-        calls.append(args)
-        assert kw["env"]["H4PIN_WARMUP"] == "inline"
-        return Done()
-
-    monkeypatch.setattr(warmup.subprocess, "run", run)
-    warmup.compile_all(lambda name, secs: seen.append(name), "frequencies", isolate=True)
-    assert [a[a.index("--step") + 1] for a in calls] == warmup.order("frequencies")
-    assert seen == [warmup.NAMES[k] for k in warmup.order("frequencies")]
-    Done.returncode, Done.stderr = 1, "boom"
-    with pytest.raises(RuntimeError, match="(?s)configuration .*failed.*boom"):
-        warmup.compile_all(isolate=True)
+    for first in (None, *warmup.KEYS):
+        runs = warmup.chunks(first)
+        assert [k for run in runs for k in run] == warmup.order(first)
+        assert all(len({warmup.GROUPS[k] for k in run}) == 1 for run in runs)
+        assert all(warmup.GROUPS[a[-1]] != warmup.GROUPS[b[0]] for a, b in zip(runs[:-1], runs[1:], strict=True))
+    seen = []
+    warmup.compile_all(lambda name, secs: seen.append(name), "mechanism", isolate=True)
+    assert seen == [warmup.NAMES[k] for k in warmup.order("mechanism")]
+    with pytest.raises(RuntimeError, match="(?s)nosuch.*failed.*unknown step"):
+        warmup.run_child(["nosuch"], None)
