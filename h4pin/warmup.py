@@ -6,10 +6,12 @@ first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline'
 batch entries, the natural frequencies, the atlas and sweep reductions, a tiny atlas and
 sweep run as their commands run them (every signature the commands compile: a test lists them),
 and the compiled path of any closed-loop mechanism (:mod:`h4pin.elastic.compiled`).
-After it, every call starts compiled.
+After it, every call starts compiled. ``h4pin warmup`` and ``python -m h4pin.warmup`` run the
+steps in three child processes, one after the other (:func:`compile_all` with ``isolate``),
+which bounds the peak memory to the largest group's.
 h4pin starts this module by itself in the background the first time a call needs code that is
-not compiled yet (:mod:`h4pin._jit`); run it yourself where a first call must be fast, e.g. after
-``pip install`` in a Dockerfile.
+not compiled yet (:mod:`h4pin._jit`), the step that call needs first; run it yourself where a
+first call must be fast, e.g. after ``pip install`` in a Dockerfile.
 """
 
 from __future__ import annotations
