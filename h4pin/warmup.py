@@ -196,15 +196,19 @@ def run_child(keys: list[str], progress: Callable[[str, float], None] | None) ->
     with subprocess.Popen(args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           text=True) as child:
         assert child.stdout is not None
-        for line in child.stdout:
-            mark, _, rest = line.partition(" ")
-            key, _, secs = rest.strip().partition(" ")
-            if mark == _MARK and key in NAMES:
-                done.append(key)
-                if progress is not None:
-                    progress(NAMES[key], float(secs))
-            else:
-                other.append(line)
+        try:
+            for line in child.stdout:
+                mark, _, rest = line.partition(" ")
+                key, _, secs = rest.strip().partition(" ")
+                if mark == _MARK and key in NAMES:
+                    done.append(key)
+                    if progress is not None:
+                        progress(NAMES[key], float(secs))
+                else:
+                    other.append(line)
+        except BaseException:  # a SIGTERM (main's SystemExit), Ctrl-C, a failing progress: end the child too
+            child.kill()
+            raise
     if child.returncode != 0:
         failed = next((k for k in keys if k not in done), keys[-1])
         tail = "".join(other).strip()[-2000:]

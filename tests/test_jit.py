@@ -217,3 +217,30 @@ def test_isolated_warmup_runs_a_process_a_group():
     assert seen == [warmup.NAMES[k] for k in warmup.order("mechanism")]
     with pytest.raises(RuntimeError, match="(?s)nosuch.*failed.*unknown step"):
         warmup.run_child(["nosuch"], None)
+
+
+def test_sigterm_ends_the_warmup_and_its_child(tmp_path):
+    """A SIGTERM to the warm-up (what a test or a user sends its lock holder) ends the child
+    process compiling a group too, and releases the lock: nothing keeps compiling behind it."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), H4PIN_WARMUP="inline", PYTHONPATH=str(ROOT))
+    lock = tmp_path / "warmup.lock"
+    parent = subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", str(lock), "--quiet"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    children = Path(f"/proc/{parent.pid}/task/{parent.pid}/children")
+    try:
+        deadline = time.monotonic() + 120
+        kids: list[int] = []
+        while not kids:
+            if not children.exists():
+                pytest.skip("this kernel does not list a process's children in /proc")
+            kids = [int(k) for k in children.read_text().split()]
+            assert time.monotonic() < deadline and parent.poll() is None, "the warm-up started no child"
+            time.sleep(0.2)
+        parent.send_signal(signal.SIGTERM)
+        assert parent.wait(timeout=60) == 128 + signal.SIGTERM
+        for kid in kids:
+            assert not Path(f"/proc/{kid}").exists() or "Z" in Path(f"/proc/{kid}/stat").read_text().split()[2]
+        assert not lock.exists()
+    finally:
+        if parent.poll() is None:
+            parent.kill()
