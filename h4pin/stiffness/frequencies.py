@@ -466,7 +466,9 @@ def _bodies(x, q, Xrow, G, MP, CF, CI, W):  # pragma: no cover - compiled
         for a in range(3):
             axes[4 + i, a] = 0.5 * (A[2 * i, a] + A[2 * i + 1, a])
             axes[8 + i, a] = axes[4 + i, a] - G[G_P + 3 * i + a]
-        axes[8 + i] /= math.sqrt(axes[8 + i, 0] ** 2 + axes[8 + i, 1] ** 2 + axes[8 + i, 2] ** 2)
+        norm = math.sqrt(axes[8 + i, 0] ** 2 + axes[8 + i, 1] ** 2 + axes[8 + i, 2] ** 2)
+        for a in range(3):  # element by element: an array into a slice compiles numba's shape-error formatter
+            axes[8 + i, a] /= norm
         for j in range(2):
             n = 2 * i + j
             b1 = MP[_O_BAR + _BAR * n:_O_BAR + _BAR * n + 15 + _INERTIA]
