@@ -993,7 +993,10 @@ _JIT = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
 #: is not 0. G is the packed geometry (:mod:`h4pin.stiffness.packed`); model 0 ``"paper"``, 1
 #: ``"consistent"``. Blocks of :data:`LANES` lanes, a compile-time constant in every lane loop.
 run = njit(**_JIT)(_entry(LANES))
-_run1 = njit(**_JIT)(_entry(1))
+#: The one-lane entry, inlined by numba into :func:`one`, its only caller: its body is a few calls
+#: (cheap to copy), and as a function of its own its linked module was optimised by LLVM once
+#: more (4 s of the one-pose step's compile).
+_run1 = njit(**_JIT, inline="always")(_entry(1))
 
 
 @njit(**_JIT)
