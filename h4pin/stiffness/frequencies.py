@@ -415,7 +415,7 @@ def _put(J, c, v0, v1, v2, w0, w1, w2):
     J[3, c], J[4, c], J[5, c] = w0, w1, w2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")  # into frequencies_run: one LLVM pass over its module less
 def _pose_frequencies(x, q, Xrow, G, EG, MP, CF, CI, freq, W):  # pragma: no cover - compiled
     """The natural frequencies (Hz, ascending, NaN past the massive count) into freq of one pose
     x (4,), from the pipeline's q (4,) and intermediates Xrow (:data:`h4pin.stiffness.pipeline.NX`),
