@@ -172,7 +172,7 @@ _started = False
 _start_lock = threading.Lock()
 
 
-def _lock_path() -> str:
+def lock_path() -> str:
     """One lock per cache location and user: two processes never compile the same cache at once."""
     import numba
 
@@ -185,7 +185,7 @@ def _lock_path() -> str:
 def running() -> bool:
     """Whether a warm-up process is compiling into this process's cache now."""
     try:
-        with open(_lock_path()) as fh:
+        with open(lock_path()) as fh:
             return alive(int(fh.read().strip() or 0))
     except (OSError, ValueError):
         return False
@@ -205,7 +205,7 @@ def start_background(first: str | None = None) -> bool:
         env = dict(os.environ, H4PIN_WARMUP="inline")
         try:
             first_args = ["--first", first] if first else []
-            subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", _lock_path(), *first_args], env=env,
+            subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", lock_path(), *first_args], env=env,
                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True, close_fds=True)
         except OSError:

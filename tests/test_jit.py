@@ -147,7 +147,7 @@ def test_background_warmup_fills_the_cache(tmp_path):
 
     assert not ready()
     first = ("import h4pin, numpy as np; h4pin.compliance(h4pin.load(), np.array([0, 0, -0.5, 0.0])); "
-             "from h4pin import _jit; print(_jit._lock_path())")
+             "from h4pin import _jit; print(_jit.lock_path())")
     out = subprocess.run([sys.executable, "-c", first], env=env, capture_output=True, text=True, timeout=60,
                          check=True)
     lock = Path(out.stdout.strip())
