@@ -67,9 +67,14 @@ def chunks(first: str | None = None) -> list[list[str]]:
     return out
 
 
-def steps(first: str | None = None, only: list[str] | None = None) -> list[tuple[str, Callable[[], object]]]:
-    """The compile steps (name, call), in :func:`order` (``first``'s own steps first); with
-    ``only`` (keys), those steps and the steps they need, in :data:`KEYS` order."""
+def with_needs(keys: list[str]) -> list[str]:
+    """Steps ``keys`` and the steps they need (:data:`_NEEDS`), in :data:`KEYS` order."""
+    wanted = {k for key in keys for k in (*_NEEDS.get(key, ()), key)}
+    return [k for k in KEYS if k in wanted]
+
+
+def calls() -> dict[str, Callable[[], object]]:
+    """The compile steps' calls by key (sharing the robot the configuration step loads)."""
     from h4pin.kinematics import closed_form as cf
     from h4pin.robot import load
     from h4pin.stiffness.api import compliance
@@ -84,20 +89,28 @@ def steps(first: str | None = None, only: list[str] | None = None) -> list[tuple
     def pose() -> np.ndarray:
         return cf.centre_pose(state["h4"])
 
-    calls = {"configuration": configuration,
-             "one": lambda: compliance(state["h4"], pose(), method="kernel"),
-             "batch": lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel"),
-             "frequencies": lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled"),
-             "fields": _study_fields,
-             "studies": lambda: _studies(state["h4"]),
-             "mechanism": _mechanism}
-    table = {key: (NAMES[key], call) for key, call in calls.items()}
-    if only is None:
-        keys = order(first)
-    else:
-        wanted = {k for key in only for k in (*_NEEDS.get(key, ()), key)}
-        keys = [k for k in KEYS if k in wanted]
-    return [table[key] for key in keys]
+    return {"configuration": configuration,
+            "one": lambda: compliance(state["h4"], pose(), method="kernel"),
+            "batch": lambda: compliance(state["h4"], np.tile(pose(), (2, 1)), method="kernel"),
+            "frequencies": lambda: modes(state["h4"], np.tile(pose(), (2, 1)), method="compiled"),
+            "fields": _study_fields,
+            "studies": lambda: _studies(state["h4"]),
+            "mechanism": _mechanism}
+
+
+def steps(first: str | None = None) -> list[tuple[str, Callable[[], object]]]:
+    """The compile steps (name, call), in :func:`order` (``first``'s own steps first)."""
+    table = calls()
+    return [(NAMES[key], table[key]) for key in order(first)]
+
+
+def gates() -> list:
+    """The gates (:class:`h4pin._jit.Gate`) of the compiled entry points the steps compile."""
+    from h4pin.elastic import batch
+    from h4pin.kinematics import pinocchio as kin
+    from h4pin.stiffness import frequencies, kernel
+
+    return [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE]
 
 
 def _mechanism() -> None:
@@ -220,14 +233,12 @@ def compile_steps(keys: list[str], report: Callable[[str, float], None] | None =
     from the cache when compiled before); ``report(key, seconds)`` after each of ``keys``."""
     from h4pin import _jit
 
-    wanted = set(keys)
-    table = dict(zip([k for k in KEYS if k in {n for key in keys for n in (*_NEEDS.get(key, ()), key)}],
-                     steps(only=keys), strict=True))
+    table = calls()
     with _jit.compiling():
-        for key, (_, call) in table.items():
+        for key in with_needs(keys):
             t = time.perf_counter()
-            call()
-            if report is not None and key in wanted:
+            table[key]()
+            if report is not None and key in keys:
                 report(key, time.perf_counter() - t)
 
 
@@ -252,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.lock and not take_lock(args.lock):
         return 0  # another process compiles this cache now
-    # A SIGTERM ends the step's child too (subprocess.run kills its child on the SystemExit).
+    # A SIGTERM ends the running child too (run_child kills it on the SystemExit).
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     try:
         def say(name: str, seconds: float) -> None:

@@ -299,7 +299,8 @@ def bare_calls(h4: h4pin.H4, x: np.ndarray, repeat: int) -> tuple[float, float]:
     pipeline.one(xr, kern.packed, kern.elements, pipeline.PAPER, *out)
     n = 20_000
     t_ind = best_of(repeat, lambda: [independent_compliance(x, *args) for _ in range(n // 10)]) / (n // 10)
-    t_one = best_of(repeat, lambda: [pipeline.one(xr, kern.packed, kern.elements, 0, *out) for _ in range(n)]) / n
+    t_one = best_of(repeat, lambda: [pipeline.one(xr, kern.packed, kern.elements, pipeline.PAPER, *out)
+                                     for _ in range(n)]) / n
     return t_ind, t_one
 
 
@@ -351,7 +352,8 @@ def check_agreement(h4: h4pin.H4, poses: np.ndarray) -> tuple[float, float, floa
     few = poses[:50]
     ours = compliance(h4, few, "paper", method="closed_form").matrix
     naive = np.array([naive_compliance(h4.params, x) for x in few])
-    independent = np.array([independent_compliance(x, *independent_constants(h4.params)) for x in few])
+    args = independent_constants(h4.params)
+    independent = np.array([independent_compliance(x, *args) for x in few])
     agree = max(np.max(np.abs(ours - naive)), np.max(np.abs(ours - independent))) / np.max(np.abs(ours))
     if agree > 1e-10:
         raise SystemExit(f"naive eq. 30 (numpy or compiled) and h4pin disagree: {agree:.1e} relative")

@@ -33,13 +33,9 @@ def pytest_sessionstart(session):
     import subprocess
     import sys
 
-    from h4pin import _jit
-    from h4pin.elastic import batch
-    from h4pin.kinematics import pinocchio as kin
-    from h4pin.stiffness import frequencies, kernel
+    from h4pin import _jit, warmup
 
-    gates = (kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE)
-    if os.environ.get("H4PIN_TEST_WARMUP") == "0" or all(g.cached() for g in gates) or _jit.running():
+    if os.environ.get("H4PIN_TEST_WARMUP") == "0" or all(g.cached() for g in warmup.gates()) or _jit.running():
         return
     _WARMUP.append(subprocess.Popen([sys.executable, "-m", "h4pin.warmup", "--lock", _jit.lock_path(), "--quiet"],
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))

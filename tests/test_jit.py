@@ -98,6 +98,7 @@ def test_warmup_compiles_every_gated_function():
 
     warmup.compile_all()
     gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE]
+    assert warmup.gates() == gates  # the list the test suite's own warm-up checks (tests/conftest.py)
     for gate in gates:
         assert all(f.signatures for f in gate.functions), gate.name
         assert gate.step in warmup.KEYS, gate.name
