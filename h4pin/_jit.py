@@ -2,7 +2,7 @@
 """First use without waiting for the compiler: which compiled functions are ready, their
 interpreted twins, and the background warm-up.
 
-h4pin's compiled code (numba, cached on disk) takes 2-3 minutes to compile the first time, once per
+h4pin's compiled code (numba, cached on disk) takes about two minutes to compile the first time, once per
 install. Until it is in numba's cache, the calls that need it do not wait:
 
 * :func:`h4pin.compliance` (``method="auto"``) takes the numpy reference backend, vectorised
@@ -109,6 +109,75 @@ class compiling:  # noqa: N801  (a context manager, used like a function)
     def __exit__(self, *exc: object) -> None:
         global _forced
         _forced -= 1
+
+
+# ----------------------------------------------------------------------------------------------
+# Entry points linked without a second optimisation
+
+
+#: The mangled-name prefixes of the functions :func:`link_as_compiled` marked, by numba's library
+#: name (the function's qualified name).
+_LINKED_AS_COMPILED: dict[str, tuple[str, ...]] = {}
+
+
+def link_as_compiled(f: Any) -> Any:
+    """Mark compiled function ``f`` (a numba dispatcher, returned) so that, when numba builds its
+    machine code, the compiled functions it calls are linked in as they were optimised when they
+    were compiled, not optimised a second time together with ``f``.
+
+    Numba links the optimised module of every callee into its caller's and runs LLVM's whole
+    module pipeline over the result again, at every level of calls. For an entry point whose
+    callees are a few large stages, called once per block of poses, that second pass is pure
+    compile time: on the pipeline's batch entry it was 20 of the step's 33 s, optimising the
+    64-lane stages again. Marked, ``f``'s own code still gets numba's function passes and its
+    callees keep their own full optimisation; the results are bit-identical and the speed the
+    same (measured on the three entry points marked, docs/architecture.md "First use").
+
+    This hooks a private method of numba (``CPUCodeLibrary._optimize_final_module``), once per
+    process, for the marked functions only; a numba without it, or whose pass managers differ,
+    compiles them as usual (optimising twice changes nothing but the time).
+    """
+    from numba.core.itanium_mangler import mangle_identifier
+
+    py = getattr(f, "py_func", None)
+    if py is None:  # NUMBA_DISABLE_JIT: a plain function
+        return f
+    parts = [*py.__module__.split("."), *py.__qualname__.split(".")]
+    prefix = "_ZN" + "".join(mangle_identifier(part) for part in parts)
+    _LINKED_AS_COMPILED[py.__qualname__] = (*_LINKED_AS_COMPILED.get(py.__qualname__, ()), prefix)
+    _hook_codegen()
+    return f
+
+
+def _hook_codegen() -> None:
+    """Install :func:`link_as_compiled`'s hook on numba's code library class (once)."""
+    try:
+        from numba.core import codegen
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return
+    cls = getattr(codegen, "CPUCodeLibrary", None)
+    full = getattr(cls, "_optimize_final_module", None)
+    if full is None or getattr(full, "_h4pin_hook", False):
+        return
+
+    def optimize_final_module(self: Any) -> None:
+        prefixes = _LINKED_AS_COMPILED.get(getattr(self, "name", None), ())
+        module = getattr(self, "_final_module", None)
+        if not prefixes or module is None or not any(fn.name.startswith(prefixes) for fn in module.functions):
+            full(self)
+            return
+        try:  # numba's cheap module passes alone (its reference-count pruning needs them)
+            cheap, builder = self._codegen._module_pass_manager(loop_vectorize=self._codegen._loopvect,
+                                                                slp_vectorize=False, opt=self._codegen._opt_level,
+                                                                cost="cheap")
+            cheap.run(module, builder)
+            if not codegen.config.LLVM_REFPRUNE_PASS:
+                self._final_module = codegen.remove_redundant_nrt_refct(module)
+        except Exception:  # another numba's pass managers: optimise as numba does
+            full(self)
+
+    optimize_final_module._h4pin_hook = True  # type: ignore[attr-defined]
+    cls._optimize_final_module = optimize_final_module
 
 
 # ----------------------------------------------------------------------------------------------

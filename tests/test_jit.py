@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numba import njit
 
 import h4pin
 from h4pin import _jit
@@ -245,3 +246,51 @@ def test_sigterm_ends_the_warmup_and_its_child(tmp_path):
     finally:
         if parent.poll() is None:
             parent.kill()
+
+
+@njit
+def _callee(a, i):  # pragma: no cover - compiled
+    s = 0.0
+    for k in range(a.shape[0]):
+        s += a[k] * (k + i)
+    return s
+
+
+@njit
+def _plain_caller(a):  # pragma: no cover - compiled
+    return _callee(a, 1) + _callee(a, 2)
+
+
+@_jit.link_as_compiled
+@njit
+def _linked_caller(a):  # pragma: no cover - compiled
+    return _callee(a, 1) + _callee(a, 2)
+
+
+def test_link_as_compiled_links_callees_as_they_were_optimised():
+    """A function marked by ``_jit.link_as_compiled`` calls its callees' compiled code as it is
+    (their definitions stay in its module, called), where numba's own build inlines them and
+    optimises them again; both give the same number as numpy."""
+    a = np.linspace(-1.0, 2.0, 7)
+    want = float(np.sum(a * (np.arange(7) + 1)) + np.sum(a * (np.arange(7) + 2)))
+    assert _plain_caller(a) == pytest.approx(want, rel=1e-15)
+    assert _linked_caller(a) == _plain_caller(a)
+
+    def callees_defined(f):
+        ir = f.overloads[f.signatures[0]].library.get_llvm_str()
+        return [line for line in ir.splitlines() if line.startswith("define") and "7_callee" in line]
+
+    assert len(callees_defined(_linked_caller)) == 2  # one version per literal second argument
+    assert callees_defined(_plain_caller) == []
+
+
+def test_link_as_compiled_hooks_numba_once():
+    """The hook wraps numba's method once, however many functions are marked."""
+    from numba.core import codegen
+
+    hook = codegen.CPUCodeLibrary._optimize_final_module
+    assert getattr(hook, "_h4pin_hook", False)
+    plain = _plain_caller.py_func
+    assert _jit.link_as_compiled(plain) is plain  # a plain function (NUMBA_DISABLE_JIT): returned as is
+    assert _jit.link_as_compiled(_callee) is _callee  # marking another function hooks nothing again
+    assert codegen.CPUCodeLibrary._optimize_final_module is hook

@@ -765,6 +765,7 @@ def work_arrays(ny: int, ns: int) -> tuple:
             np.zeros(ns), np.zeros(ns), np.zeros(8), np.zeros(2), np.zeros(3))  # d, e; ball; omega; v3
 
 
+@_jit.link_as_compiled
 @njit(cache=True, nogil=True)
 def frequencies_run(poses, start, stop, q, status, X, G, EG, MP, CF, CI, freq, count, W):  # pragma: no cover
     """:func:`_pose_frequencies` for poses start .. stop - 1 whose status is 0 (else NaN, count 0):

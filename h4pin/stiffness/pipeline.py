@@ -53,6 +53,7 @@ import math
 import numpy as np
 from numba import njit
 
+from h4pin import _jit
 from h4pin.description.elements import (
     AXIS_ACTUATOR,
     AXIS_ARM,
@@ -992,13 +993,14 @@ _JIT = dict(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
 #: (N, :data:`NX`) (for the natural frequencies, :mod:`h4pin.stiffness.frequencies`); NaN where the verdict
 #: is not 0. G is the packed geometry (:mod:`h4pin.stiffness.packed`); model 0 ``"paper"``, 1
 #: ``"consistent"``. Blocks of :data:`LANES` lanes, a compile-time constant in every lane loop.
-run = njit(**_JIT)(_entry(LANES))
+run = _jit.link_as_compiled(njit(**_JIT)(_entry(LANES)))  # its stages optimised once (_jit)
 #: The one-lane entry, inlined by numba into :func:`one`, its only caller: its body is a few calls
 #: (cheap to copy), and as a function of its own its linked module was optimised by LLVM once
 #: more (4 s of the one-pose step's compile).
 _run1 = njit(**_JIT, inline="always")(_entry(1))
 
 
+@_jit.link_as_compiled
 @njit(**_JIT)
 def one(pose, G, EG, model, K, q, T, want_terms, Xo, want_x):  # pragma: no cover
     """One pose (4,) as :func:`run` does it, into K (8, 8), q (4,), with ``want_terms`` T
