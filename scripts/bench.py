@@ -6,8 +6,9 @@ asserted by the tests).
 Rows: the numpy batch path (eq. 30 with the inverse geometry), the compiled pipeline
 (:mod:`h4pin.stiffness.pipeline`: batch on 1 and 2 threads, one pose, with terms, a robot with all
 12 element kinds), the Pinocchio route, a straightforward per-pose numpy implementation of eq. 30
-(loops, np.cross, explicit inverses: what one writes first; and that code compiled by numba, a
-bare call of it beside one pose through h4pin.compliance), the two validation routes, the
+(loops, np.cross, explicit inverses: what one writes first; that code compiled by numba, and the
+same math written for speed by hand, bare calls of both beside one pose through
+h4pin.compliance), the two validation routes, the
 natural frequencies (the compiled twin and the Pinocchio route), an atlas with the first
 frequency; optionally a 1e7-pose streaming run (``--big``), the Dask overhead per task
 (``--dask``), a design sweep of 10 000 designs x 1 000 poses (``--sweep``) and the tolerance
@@ -33,6 +34,7 @@ import numba
 import numpy as np
 from independent_kernel import constants as independent_constants
 from independent_kernel import independent_compliance
+from independent_tight import tight_compliance
 
 import h4pin
 from h4pin import verdicts
@@ -284,14 +286,17 @@ def main() -> None:
             section(args, h4)
 
 
-def bare_calls(h4: h4pin.H4, x: np.ndarray, repeat: int) -> tuple[float, float]:
-    """Seconds of one bare compiled call at pose x: of the independent kernel
-    (``independent_kernel.py``: the naive eq. 30 ported to numba, no code of h4pin's), and of
-    h4pin's own one-pose entry (:func:`h4pin.stiffness.pipeline.one` through its dispatcher,
-    outputs allocated once, no check and no result object): the floor under
+def bare_calls(h4: h4pin.H4, x: np.ndarray, repeat: int) -> tuple[float, float, float]:
+    """Seconds of one bare compiled call at pose x: of the two independent kernels, the naive
+    eq. 30 ported to numba (``independent_kernel.py``) and the same math written for speed by hand
+    (``independent_tight.py``: scalar loops, no temporaries, the zero blocks never formed), neither
+    sharing code with h4pin; and of h4pin's own one-pose entry (:func:`h4pin.stiffness.pipeline.one`
+    through its dispatcher, outputs allocated once, no check and no result object): the floor under
     ``h4pin.compliance(h4, pose)``, which allocates, checks and wraps."""
     args = independent_constants(h4.params)
     independent_compliance(x, *args)
+    k_tight = np.empty((8, 8))
+    tight_compliance(x, *args, k_tight)
     kern = kernel.prepare(h4.geometry)
     xr = np.array(x)
     xr.setflags(write=False)
@@ -299,9 +304,10 @@ def bare_calls(h4: h4pin.H4, x: np.ndarray, repeat: int) -> tuple[float, float]:
     pipeline.one(xr, kern.packed, kern.elements, pipeline.PAPER, *out)
     n = 20_000
     t_ind = best_of(repeat, lambda: [independent_compliance(x, *args) for _ in range(n // 10)]) / (n // 10)
+    t_tight = best_of(repeat, lambda: [tight_compliance(x, *args, k_tight) for _ in range(n)]) / n
     t_one = best_of(repeat, lambda: [pipeline.one(xr, kern.packed, kern.elements, pipeline.PAPER, *out)
                                      for _ in range(n)]) / n
-    return t_ind, t_one
+    return t_ind, t_tight, t_one
 
 
 def speed_timings(h4: h4pin.H4, poses: np.ndarray, repeat: int, fatlas_side: int) -> dict:
@@ -316,7 +322,7 @@ def speed_timings(h4: h4pin.H4, poses: np.ndarray, repeat: int, fatlas_side: int
     t["single_pin"] = best_of(repeat, lambda: [compliance(h4, x, "paper", method="pinocchio")
                                                for x in few[:500]]) / 500
     t["naive"] = best_of(repeat, lambda: [naive_compliance(h4.params, x) for x in few]) / n_single
-    t["bare_independent"], t["bare_one"] = bare_calls(h4, few[0], repeat)
+    t["bare_independent"], t["bare_tight"], t["bare_one"] = bare_calls(h4, few[0], repeat)
     t["statics"] = best_of(1, lambda: [statics.compliance_matrix(h4.geometry, x) for x in few[:200]]) / 200
     t["fd"] = best_of(1, lambda: [deformed.compliance_terms(h4.geometry, x) for x in few[:5]]) / 5
     t["kernel"], t["one"] = kernel_rows(h4, poses, repeat)
@@ -354,9 +360,13 @@ def check_agreement(h4: h4pin.H4, poses: np.ndarray) -> tuple[float, float, floa
     naive = np.array([naive_compliance(h4.params, x) for x in few])
     args = independent_constants(h4.params)
     independent = np.array([independent_compliance(x, *args) for x in few])
-    agree = max(np.max(np.abs(ours - naive)), np.max(np.abs(ours - independent))) / np.max(np.abs(ours))
+    tight = np.empty((len(few), 8, 8))
+    for x, k in zip(few, tight, strict=True):
+        tight_compliance(x, *args, k)
+    agree = max(np.max(np.abs(ours - a)) for a in (naive, independent, tight)) / np.max(np.abs(ours))
     if agree > 1e-10:
-        raise SystemExit(f"naive eq. 30 (numpy or compiled) and h4pin disagree: {agree:.1e} relative")
+        raise SystemExit(f"an independent eq. 30 (numpy, compiled or hand-tightened) and h4pin disagree: "
+                         f"{agree:.1e} relative")
     fast = kernel.compliance_batch(h4.geometry, poses, "paper")
     ref = compliance(h4, poses, "paper", method="closed_form").matrix
     agree_k = float(np.max(np.max(np.abs(fast.K - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2))))
@@ -379,6 +389,7 @@ def _speed_rows(t: dict, n_poses: int) -> list[tuple[str, float]]:
         ("atlas, 500 x 500 x 3 grid, 'consistent' (derived fields)", t["atlas"]),
         ("naive per-pose numpy eq. 30 (loops, np.cross, inv)", t["naive"]),
         ("  the same compiled by numba (independent kernel), a bare call", t["bare_independent"]),
+        ("  the same math written for speed by hand (independent), bare call", t["bare_tight"]),
         ("h4pin's one-pose compiled entry, a bare call (no check, no result)", t["bare_one"]),
         ("validation: Newton-Euler statics route", t["statics"]),
         ("validation: finite-difference route (non-linear)", t["fd"]),
@@ -456,6 +467,7 @@ def targets(t: dict) -> None:
          True),
         ("one pose, h4pin.compliance", t["single"] * 1e6, 4.0, "us", False),
         ("  / a bare call of the independent kernel", t["single"] / t["bare_independent"], 1.0, "x", False),
+        ("  / the hand-tightened independent kernel", t["single"] / t["bare_tight"], 1.0, "x", False),
         ("  / a bare call of h4pin's one-pose entry", t["single"] / t["bare_one"], 1.0, "x", False),
         ("every element kind / elements off, batch", t["el_batch"] / t["el_off"], 2.0, "x", False),
         ("modes, first four frequencies, 1 core", t["modes"]["twin, batch, first four"] * 1e6, 20.0, "us", False),

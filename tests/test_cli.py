@@ -83,6 +83,18 @@ def test_naive_eq30_agrees_with_h4pin(proto, poses):
         assert np.max(np.abs(bench.naive_compliance(proto.params, x) - k)) < 1e-12 * np.max(np.abs(k))
 
 
+def test_hand_tightened_eq30_agrees_with_h4pin(proto, poses):
+    """The bench's hand-tightened independent kernel (its reductions of the naive products are
+    algebra, not shared code) gives h4pin's K."""
+    naive, tight = script("independent_kernel"), script("independent_tight")
+    args = naive.constants(proto.params)
+    for x in poses[:4]:
+        k = compliance(proto, x, method="closed_form").matrix
+        got = np.full((8, 8), np.nan)
+        tight.tight_compliance(np.ascontiguousarray(x, dtype=float), *args, got)
+        assert np.max(np.abs(got - k)) < 1e-12 * np.max(np.abs(k))
+
+
 def test_constrained_dynamics_keeps_the_loops_closed(proto):
     rows = script("constrained_dynamics").simulate(proto, duration=0.05, dt=1e-4, report_every=0.01)
     drift = max(d for _, d, _ in rows)
