@@ -580,8 +580,10 @@ for name, code in {steps!r}.items():
         x = centre_pose(h4); xs = x + np.random.default_rng(0).uniform(-1, 1, (1000, 4)) * [0.05, 0.05, 0.03, 0.2]
 print(json.dumps(out))
 """
-#: The previous release's warm-up on this machine, idle: seconds and peak resident MB.
-PREVIOUS_WARMUP = (195.7, 2457.0)
+#: The warm-up of commit 6cc450b (two releases ago) on this machine, idle, measured in the same hour
+#: as this release's 126 s and 423 MB: seconds and peak resident MB (the machine's speed drifts by
+#: up to 2.5x from day to day: compare with a run of the same day).
+PREVIOUS_WARMUP = (166.4, 599.5)
 
 
 #: Runs ``-c CODE`` or ``-m MODULE ARGS`` and writes its peak resident memory (KB: the process
@@ -732,7 +734,7 @@ def cold_table() -> None:
     for name, t in rows.items():
         inline = f"{t['inline']:.2f}" if "inline" in t else "-"
         print(f"| {name:<45} | {t['off']:>8.2f} | {inline:>27} |")
-    print(f"\n`h4pin warmup` (compile everything once), empty cache; before: {PREVIOUS_WARMUP[0]:.0f} s, "
+    print(f"\n`h4pin warmup` (compile everything once), empty cache; 6cc450b: {PREVIOUS_WARMUP[0]:.0f} s, "
           f"{PREVIOUS_WARMUP[1]:.0f} MB peak resident (idle); targets <= 60 s, <= 600 MB idle")
     for label, n in (("idle", 0), ("beside two busy processes", 2)):
         jobs = busy(n)
