@@ -128,19 +128,22 @@ def link_as_compiled(f: Any) -> Any:
     Numba links the optimised module of every callee into its caller's and runs LLVM's whole
     module pipeline over the result again, at every level of calls. For an entry point whose
     callees are a few large stages, called once per block of poses, that second pass is pure
-    compile time: on the pipeline's batch entry it was 20 of the step's 33 s, optimising the
-    64-lane stages again. Marked, ``f``'s own code still gets numba's function passes and its
-    callees keep their own full optimisation; the results are bit-identical and the speed the
-    same (measured on the three entry points marked, docs/architecture.md "First use").
+    compile time: on the pipeline's batch entry, LLVM's module passes took 15.5 of the 45 s it
+    took to compile alone, optimising the 64-lane stages again. Marked, ``f``'s own code still
+    gets numba's function passes and its callees keep their own full optimisation; the results
+    are bit-identical and the speed the same (measured on the three entry points marked,
+    docs/architecture.md "First use").
 
     This hooks a private method of numba (``CPUCodeLibrary._optimize_final_module``), once per
     process, for the marked functions only; a numba without it, or whose pass managers differ,
     compiles them as usual (optimising twice changes nothing but the time).
     """
-    from numba.core.itanium_mangler import mangle_identifier
-
     py = getattr(f, "py_func", None)
     if py is None:  # NUMBA_DISABLE_JIT: a plain function
+        return f
+    try:
+        from numba.core.itanium_mangler import mangle_identifier
+    except ImportError:  # pragma: no cover - another numba: compiled as usual
         return f
     parts = [*py.__module__.split("."), *py.__qualname__.split(".")]
     prefix = "_ZN" + "".join(mangle_identifier(part) for part in parts)
