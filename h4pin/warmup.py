@@ -49,10 +49,7 @@ def order(first: str | None = None) -> list[str]:
     :class:`h4pin.elastic.Mechanism` user waits 20 s for the generic path, not for the H4's
     two minutes before it); then the rest in :data:`KEYS` order. ``first`` None or unknown:
     :data:`KEYS` order."""
-    if first not in KEYS:
-        return list(KEYS)
-    head = [*_NEEDS.get(first, ()), first]
-    return head + [k for k in KEYS if k not in head]
+    return with_needs([first, *KEYS] if first in KEYS else list(KEYS))
 
 
 def chunks(first: str | None = None) -> list[list[str]]:
@@ -68,9 +65,11 @@ def chunks(first: str | None = None) -> list[list[str]]:
 
 
 def with_needs(keys: list[str]) -> list[str]:
-    """Steps ``keys`` and the steps they need (:data:`_NEEDS`), in :data:`KEYS` order."""
-    wanted = {k for key in keys for k in (*_NEEDS.get(key, ()), key)}
-    return [k for k in KEYS if k in wanted]
+    """Steps ``keys`` in their order, each after the steps it needs (:data:`_NEEDS`), each once."""
+    out: list[str] = []
+    for key in keys:
+        out += [k for k in (*_NEEDS.get(key, ()), key) if k not in out]
+    return out
 
 
 def calls() -> dict[str, Callable[[], object]]:
@@ -96,12 +95,6 @@ def calls() -> dict[str, Callable[[], object]]:
             "fields": _study_fields,
             "studies": lambda: _studies(state["h4"]),
             "mechanism": _mechanism}
-
-
-def steps(first: str | None = None) -> list[tuple[str, Callable[[], object]]]:
-    """The compile steps (name, call), in :func:`order` (``first``'s own steps first)."""
-    table = calls()
-    return [(NAMES[key], table[key]) for key in order(first)]
 
 
 def gates() -> list:
@@ -177,19 +170,12 @@ def compile_all(progress: Callable[[str, float], None] | None = None, first: str
     all the steps ends at the sum of their memory (about 690 MB); a process per group ends at the
     largest group's (about 420 MB). Else in this process (its functions are then compiled here
     too, not only cached)."""
-    from h4pin import _jit
-
     t0 = time.perf_counter()
     if isolate:
         for chunk in chunks(first):
             run_child(chunk, progress)
         return time.perf_counter() - t0
-    with _jit.compiling():
-        for name, call in steps(first):
-            t = time.perf_counter()
-            call()
-            if progress is not None:
-                progress(name, time.perf_counter() - t)
+    compile_steps(order(first), None if progress is None else lambda key, seconds: progress(NAMES[key], seconds))
     return time.perf_counter() - t0
 
 
@@ -229,8 +215,9 @@ def run_child(keys: list[str], progress: Callable[[str, float], None] | None) ->
 
 
 def compile_steps(keys: list[str], report: Callable[[str, float], None] | None = None) -> None:
-    """Compile steps ``keys`` (:data:`KEYS`) in this process, after the steps they need (loaded
-    from the cache when compiled before); ``report(key, seconds)`` after each of ``keys``."""
+    """Compile steps ``keys`` (:data:`KEYS`) in this process, in their order, each after the steps
+    it needs (loaded from the cache when compiled before); ``report(key, seconds)`` after each of
+    ``keys``."""
     from h4pin import _jit
 
     table = calls()

@@ -91,13 +91,16 @@ READY = ("from h4pin.kinematics import _compiled; from h4pin.stiffness import pi
 
 def test_warmup_compiles_every_gated_function():
     """The warm-up's steps compile every function a gate waits for (else a process would stay on
-    the fallback for good): run in this process, every gate is ready afterwards."""
+    the fallback for good): run in this process, every gate is ready afterwards, each step
+    reported once, in order."""
     from h4pin import warmup
     from h4pin.elastic import batch
     from h4pin.kinematics import pinocchio as kin
     from h4pin.stiffness import frequencies, kernel
 
-    warmup.compile_all()
+    seen: list[str] = []
+    warmup.compile_all(lambda name, seconds: seen.append(name))
+    assert seen == [warmup.NAMES[key] for key in warmup.KEYS]
     gates = [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE]
     assert warmup.gates() == gates  # the list the test suite's own warm-up checks (tests/conftest.py)
     for gate in gates:
@@ -117,7 +120,8 @@ def test_warmup_compiles_the_calling_step_first():
         assert got.index(key) <= 1, key  # first, or right after the robot it needs
     assert warmup.order("mechanism")[0] == "mechanism"
     assert warmup.order("frequencies")[:2] == ["configuration", "frequencies"]
-    names = [name for name, _ in warmup.steps("mechanism")]
+    assert warmup.with_needs(["studies", "one"]) == ["configuration", "studies", "one"]
+    names = [warmup.NAMES[key] for key in warmup.order("mechanism")]
     assert names[0].startswith("any mechanism") and len(names) == len(warmup.KEYS)
 
 
