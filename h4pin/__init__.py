@@ -5,7 +5,9 @@ Layers (``docs/architecture.md``): :mod:`h4pin.description` (params, URDF, geome
 reading) -> :mod:`h4pin.robot` (``load``, the immutable :class:`H4`) and :mod:`h4pin.kinematics`
 (closed forms, Pinocchio) -> :mod:`h4pin.stiffness` (matrices, eq. 30: numpy reference and
 compiled core; elements; :func:`compliance`) -> :mod:`h4pin.studies` and :mod:`h4pin.io`;
-:mod:`h4pin.checks` holds the independent validation routes.
+:mod:`h4pin.checks` holds the independent validation routes. Under all of them,
+:mod:`h4pin.mechanism` is the generic engine of any closed-loop robot (``Mechanism``), which
+imports nothing of the H4.
 """
 
 from h4pin import _numba_cache
@@ -13,10 +15,11 @@ from h4pin import _numba_cache
 _numba_cache.configure()  # a read-only install caches compiled code elsewhere (before any is defined)
 
 from h4pin import _compat  # noqa: E402, F401  (gives Pinocchio 3.x a RigidConstraintModel.calc)
+from h4pin._version import __version__  # noqa: E402, F401
 from h4pin.description.elements import Elements  # noqa: E402
 from h4pin.description.geometry import H4Geometry  # noqa: E402
 from h4pin.description.params import VARIANTS, H4Params, symmetric_params, toleranced_params  # noqa: E402
-from h4pin.elastic import ElasticH4, Modes, Payload, elastic_model  # noqa: E402
+from h4pin.elastic import ElasticH4, elastic_model  # noqa: E402
 from h4pin.errors import (  # noqa: E402
     ConvergenceError,
     H4Error,
@@ -30,29 +33,20 @@ from h4pin.errors import (  # noqa: E402
     UnreachablePoseError,
     URDFNotFoundError,
 )
-from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
-from h4pin.robot import H4, load  # noqa: E402
-from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
-from h4pin.vibration import modes  # noqa: E402
-
-__version__ = "0.1.0"
 
 # Import-time registration (documented in docs/descriptions.md, tested in tests/test_erd.py): with
 # example-robot-data-loaders installed, example_robot_data.load("h4") works after `import h4pin`;
 # the names are h4pin.io.erd.NAMES. Without the loaders nothing happens (and nothing is imported).
 from h4pin.io import erd as _erd  # noqa: E402
+from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
+from h4pin.mechanism import Mechanism, Modes, Payload  # noqa: E402
+from h4pin.robot import H4, load  # noqa: E402
+from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
+from h4pin.vibration import modes  # noqa: E402
 
 if _erd.available():
     _erd.register()
 
-def __getattr__(name: str):
-    if name == "Frequencies":  # one result type: h4pin.Modes, for one pose or many
-        import warnings
-
-        warnings.warn("h4pin.Frequencies is now h4pin.Modes (one result type for one pose or many); the old "
-                      "name goes in the next release", DeprecationWarning, stacklevel=2)
-        return Modes
-    raise AttributeError(f"module 'h4pin' has no attribute {name!r}")
 
 
 __all__ = [
@@ -68,6 +62,7 @@ __all__ = [
     "InterferenceError",
     "JointLimitError",
     "Kinematics",
+    "Mechanism",
     "LoadError",
     "MalformedURDFError",
     "Modes",

@@ -70,3 +70,10 @@ class MechanismWarning(UserWarning):
 class UnsupportedFeatureError(H4Error, ValueError):
     """A robot file uses a feature h4pin cannot represent (an MJCF joint coupling, a tendon
     motor): refused by name rather than dropped."""
+
+
+def located(exc: H4Error, where: str | None) -> H4Error:
+    """``exc`` with ``where`` (which configuration of a batch, say) in front of its message."""
+    if where is not None and exc.args:
+        exc.args = (f"{where}: {exc.args[0]}",) + exc.args[1:]
+    return exc

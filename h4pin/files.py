@@ -360,7 +360,7 @@ def check_replace(path: str | Path, what: str, overwrite: bool = False) -> Path:
     """Refuse, before any work, to replace an existing file that h4pin did not write
     (:func:`written_by_h4pin`) unless ``overwrite``: :class:`h4pin.ParameterError` naming ``what``
     (the option) and the file, which is left as it is. A folder is left to the store checks
-    (:func:`h4pin.studies.atlas.check_out`, :func:`h4pin.studies.sweep.check_store`)."""
+    (:func:`h4pin.mechanism.store.check_out`, :func:`h4pin.studies.sweep.check_store`)."""
     path = Path(path)
     if overwrite or not (path.exists() or path.is_symlink()) or (path.is_dir() and not path.is_symlink()):
         return path

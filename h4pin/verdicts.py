@@ -28,7 +28,7 @@ STATUS_NAMES = ("ok", "unreachable", "outside joint limits", "bars interpenetrat
 #: Not 1e10: at 1e10 the symmetric variant's accepted poses near its singular centre are no longer
 #: positive definite to round-off in 1 % of them, and the pose 10 nm from it is accepted
 #: (tests/test_verdicts.py, measured in issue 37). This is the 1-norm condition of the H4's 8 x 8
-#: M1; the generic engine's frozen-mechanism check (h4pin.elastic.engine) is a 2-norm condition of
+#: M1; the generic engine's frozen-mechanism check (h4pin.mechanism.engine) is a 2-norm condition of
 #: a stacked closure-Jacobian matrix, the kind of number :data:`CLOSURE_SINGULAR_COND` bounds.
 SINGULAR_COND = 1e9
 #: Condition number of a closed-loop system (the 24x24 passive block of the H4, a Gepetto toolbox

@@ -12,13 +12,13 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import limits, verdicts
-from h4pin.elastic.engine import Modes
 from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.modal import modes as pinocchio_modes
-from h4pin.elastic.payload import Payload
 from h4pin.errors import ParameterError
 from h4pin.inputs import check_choice, check_flag, describe, real_array
 from h4pin.kinematics.closed_form import as_poses
+from h4pin.mechanism.engine import Modes
+from h4pin.mechanism.payload import Payload
 from h4pin.robot import H4
 from h4pin.stiffness import kernel
 from h4pin.stiffness.frequencies import FREQUENCIES, frequencies
@@ -117,14 +117,6 @@ def modes(robot: Any, pose: np.ndarray, payload: Any = None, *, method: str = "a
     return Modes(freq, np.array([len(r) for r in rows]), status, payload, x)
 
 
-def __getattr__(name: str) -> Any:
-    if name == "Frequencies":  # one result type: h4pin.Modes, for one pose or many
-        import warnings
-
-        warnings.warn("h4pin.Frequencies is now h4pin.Modes (one result type for one pose or many); the old "
-                      "name goes in the next release", DeprecationWarning, stacklevel=2)
-        return Modes
-    raise AttributeError(f"module 'h4pin.vibration' has no attribute {name!r}")
 
 
 __all__ = ["METHODS", "modes"]

@@ -5,7 +5,7 @@
 first need: the Pinocchio configuration (``h4pin.load``), the compiled pipeline's one-pose and
 batch entries, the natural frequencies, the atlas and sweep reductions, a tiny atlas and
 sweep run as their commands run them (every signature the commands compile: a test lists them),
-and the compiled path of any closed-loop mechanism (:mod:`h4pin.elastic.compiled`).
+and the compiled path of any closed-loop mechanism (:mod:`h4pin.mechanism.compiled`).
 After it, every call starts compiled. ``h4pin warmup`` and ``python -m h4pin.warmup`` run the
 steps in three child processes, one after the other (:func:`compile_all` with ``isolate``),
 which bounds the peak memory to the largest group's.
@@ -32,7 +32,7 @@ KEYS = ("configuration", "one", "batch", "frequencies", "fields", "studies", "me
 NAMES = {"configuration": "configuration (h4pin.load)", "one": "compiled pipeline, one pose",
          "batch": "compiled pipeline, batch", "frequencies": "natural frequencies",
          "fields": "atlas and sweep fields", "studies": "atlas and sweep, as their commands run",
-         "mechanism": "any mechanism's compiled path (h4pin.elastic.Mechanism)"}
+         "mechanism": "any mechanism's compiled path (h4pin.mechanism.Mechanism)"}
 #: The steps a step's call runs first (it needs a loaded robot).
 _NEEDS = {"one": ("configuration",), "batch": ("configuration",), "frequencies": ("configuration",),
           "studies": ("configuration",)}
@@ -46,7 +46,7 @@ GROUPS = {"configuration": "compliance", "one": "compliance", "batch": "complian
 def order(first: str | None = None) -> list[str]:
     """The steps' keys in compile order: step ``first`` (and what it needs) before the others,
     so that the call that started a background warm-up waits for its own code only (a
-    :class:`h4pin.elastic.Mechanism` user waits 20 s for the generic path, not for the H4's
+    :class:`h4pin.mechanism.Mechanism` user waits 20 s for the generic path, not for the H4's
     two minutes before it); then the rest in :data:`KEYS` order. ``first`` None or unknown:
     :data:`KEYS` order."""
     return with_needs([first, *KEYS] if first in KEYS else list(KEYS))
@@ -99,19 +99,19 @@ def calls() -> dict[str, Callable[[], object]]:
 
 def gates() -> list:
     """The gates (:class:`h4pin._jit.Gate`) of the compiled entry points the steps compile."""
-    from h4pin.elastic import batch
     from h4pin.kinematics import pinocchio as kin
+    from h4pin.mechanism import batch
     from h4pin.stiffness import frequencies, kernel
 
     return [kin.CONFIGURATION, kernel.ONE, kernel.BATCH, frequencies.FREQUENCIES, batch.GATE]
 
 
 def _mechanism() -> None:
-    """The generic compiled path (:mod:`h4pin.elastic.compiled`): a batch compliance and a batch of
+    """The generic compiled path (:mod:`h4pin.mechanism.compiled`): a batch compliance and a batch of
     natural frequencies of a three-joint closed loop built here, through :class:`Mechanism`."""
     import pinocchio as pin
 
-    from h4pin.elastic import Mechanism
+    from h4pin.mechanism import Mechanism
 
     model = pin.Model()
     placed = [(0, (0.0, 0.0, 0.0), "a"), (1, (1.0, 0.0, 0.0), "b"), (0, (2.0, 0.0, 0.0), "c")]

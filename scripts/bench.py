@@ -605,7 +605,7 @@ else:
 
 
 def mechanism_rows(repeat: int) -> None:
-    """us a configuration of h4pin.elastic.Mechanism on robots of the corpus: the plain loop a user
+    """us a configuration of h4pin.mechanism.Mechanism on robots of the corpus: the plain loop a user
     would write (Pinocchio's Jacobians, an SVD of the closures, one dense KKT solve), one
     configuration a call by the Pinocchio route (Mechanism before the compiled path), and a batch
     by the compiled path on one thread and two; the first four frequencies of the batch; and the
@@ -626,8 +626,8 @@ def _mechanism_row(urdf: Path, repeat: int, n: int = 512) -> dict[str, float]:
 
     import pinocchio as pin
 
-    from h4pin.elastic import Beam, Mechanism
     from h4pin.errors import H4Error, MechanismWarning
+    from h4pin.mechanism import Beam, Mechanism
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MechanismWarning)

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: Apache-2.0
-"""How much aluminium links add to a five-bar's servo compliance (h4pin.elastic.Beam, Mechanism.with_beams).
+"""How much aluminium links add to a five-bar's servo compliance (h4pin.mechanism.Beam, Mechanism.with_beams).
 
 Gepetto's planar five-bar (tests/robots/5bar_linkage_iso3d, BSD-3-Clause), its two motors servos of
 2 000 and 3 000 N.m/rad, every link an aluminium tube (E 70 GPa, G 26 GPa) of outer diameter --d and
@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from h4pin.elastic import Beam, Mechanism
 from h4pin.errors import H4Error, MechanismWarning
 from h4pin.files import save_figure
+from h4pin.mechanism import Beam, Mechanism
 
 ROBOT = Path(__file__).resolve().parent.parent / "tests" / "robots" / "5bar_linkage_iso3d" / "robot.urdf"
 TOOL = "closedloop3D_1B"

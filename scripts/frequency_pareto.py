@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from h4pin import plots
 from h4pin.studies import frequency, sweep
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -44,7 +45,7 @@ def main() -> None:
     for i in par["front"][:: max(1, len(par["front"]) // 12)]:
         print(f"  design {par['design'][i]}: {par['frequency'][i]:.1f} Hz, volume {par['volume'][i] * 1e3:.0f} dm^3, "
               f"worst compliance {par['worst'][i] * 1e6:.1f} um/N")
-    print(f"wrote {frequency.plot_frequency_pareto(par, args.out)}")
+    print(f"wrote {plots.frequency_pareto(par, args.out)}")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import h4pin
 from h4pin.io import viewer
+from h4pin.mechanism.scene import screenshot
 
 
 def main() -> None:
@@ -26,7 +27,7 @@ def main() -> None:
     h4 = h4pin.load("prototype")
     with tempfile.TemporaryDirectory() as tmp, viewer.show(h4, load=[0.0, 0.0, -10.0], field=True) as scene:
         page = scene.write_html(Path(tmp) / "h4.html")
-        png = viewer.screenshot(page, Path(tmp) / "h4.png", size=(1000, 750))
+        png = screenshot(page, Path(tmp) / "h4.png", size=(1000, 750))
         shutil.move(png, args.out)  # the temporary folder may be on another file system
     print(f"wrote {args.out}")
 

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import h4pin
+from h4pin import plots
 from h4pin.studies import tolerance
 
 
@@ -30,7 +31,7 @@ def main() -> None:
     sens = tolerance.sensitivity(h4, n_robots=args.sens_robots, seed=args.seed)
     print(tolerance.report(res, sens))
     print(f"\n{args.robots} robots x {len(res.poses)} poses in {t1 - t0:.2f} s")
-    print(f"wrote {tolerance.write_figure(res, args.out)}")
+    print(f"wrote {plots.tolerance(res, args.out)}")
 
 
 if __name__ == "__main__":

@@ -165,7 +165,6 @@ SLOW_IDS = frozenset({
     'tests/test_atlas.py::test_streamed_atlas_equals_the_one_in_memory',
     'tests/test_cli.py::test_a_user_file_is_kept_unless_overwrite[export]',
     'tests/test_cli.py::test_cli_errors_are_one_line[args1-singular]',
-    'tests/test_cli.py::test_old_option_names_still_work_with_a_warning',
     'tests/test_cli.py::test_table2_prints_the_computed_block',
     'tests/test_core.py::test_elements_against_the_independent_routes[measured_match]',
     'tests/test_core.py::test_elements_against_the_independent_routes[prototype]',

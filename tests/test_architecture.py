@@ -184,3 +184,24 @@ def test_no_class_and_no_function_is_longer_than_the_page_says():
                 assert size <= classes, f"{module}.{node.name}: {size} lines"
             elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 assert size <= functions, f"{module}:{node.name}: {size} lines"
+
+
+#: The H4's own modules: what the generic engine (h4pin.mechanism) must not reach.
+H4_SIDE = {"h4pin.description", "h4pin.descriptions", "h4pin.kinematics", "h4pin.robot", "h4pin.stiffness",
+           "h4pin.elastic", "h4pin.checks", "h4pin.studies", "h4pin.io", "h4pin.vibration", "h4pin.plots",
+           "h4pin.cli", "h4pin.warmup"}
+
+
+def test_the_generic_engine_reaches_nothing_of_the_h4():
+    """The import closure of every module of h4pin.mechanism (what it imports, what those import,
+    and so on; inside functions too) holds no module of the H4, nor the package's face, which
+    imports the H4: the engine is the bottom floor, the H4 its client."""
+    for module in (m for m in FILES if _covered(m, {"h4pin.mechanism"})):
+        seen, todo = set(), [module]
+        while todo:
+            for d in GRAPH[todo.pop()] - seen:
+                seen.add(d)
+                todo.append(d)
+        reached = sorted(d for d in seen if _covered(d, H4_SIDE) or d == "h4pin")
+        assert reached == [], f"{module} reaches {reached}"
+    assert "floor 1   mechanism/" in DOC  # the page draws it under the H4's floors

@@ -12,10 +12,11 @@ import matplotlib
 import numpy as np
 import pytest
 
-from h4pin import verdicts
+from h4pin import plots, verdicts
 from h4pin.errors import ParameterError
 from h4pin.io import viewer, viewer_atlas
 from h4pin.kinematics import closed_form as geometry
+from h4pin.mechanism import store
 from h4pin.stiffness.api import compliance
 from h4pin.stiffness.matrices import from_points
 from h4pin.studies import atlas
@@ -70,21 +71,21 @@ def test_unreachable_points_are_nan_with_their_status(proto, ds):
 
 @pytest.mark.parametrize("suffix", [".nc", ".zarr"])
 def test_file_round_trip(ds, tmp_path, suffix):
-    path = atlas.save(ds, tmp_path / f"a{suffix}")
-    back = atlas.open_atlas(path)
+    path = store.save(ds, tmp_path / f"a{suffix}")
+    back = store.open_store(path)
     assert back.identical(ds) if suffix == ".nc" else back.equals(ds)
     for q in (*atlas.QUANTITIES, "status"):
         assert back[q].attrs["units"] == ds[q].attrs["units"]
     files = [path] if path.is_file() else [p for p in path.rglob("*") if p.is_file()]
     assert files and all(stat.S_IMODE(p.stat().st_mode) == 0o644 for p in files)
-    atlas.save(ds.isel(x=slice(0, 3)), path)  # overwrite in place
-    assert atlas.open_atlas(path).sizes["x"] == 3
+    store.save(ds.isel(x=slice(0, 3)), path)  # overwrite in place
+    assert store.open_store(path).sizes["x"] == 3
     assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left behind
 
 
 def test_bad_arguments_are_typed(proto, tmp_path, ds):
     with pytest.raises(ParameterError, match="path"):
-        atlas.save(ds, tmp_path / "a.csv")
+        store.save(ds, tmp_path / "a.csv")
     with pytest.raises(ParameterError, match="x"):
         atlas.atlas(proto, [], [0.0], [-0.6])
     with pytest.raises(ParameterError, match="quantity"):
@@ -92,7 +93,7 @@ def test_bad_arguments_are_typed(proto, tmp_path, ds):
 
 
 def test_maps_have_one_figure_per_quantity(ds, tmp_path):
-    paths = atlas.plot(ds, tmp_path)
+    paths = plots.atlas_maps(ds, tmp_path)
     assert sorted(p.name for p in paths) == sorted(f"atlas_{q}.png" for q in (*atlas.QUANTITIES, "status"))
     img = matplotlib.image.imread(paths[0])
     assert img.shape[0] > 200 and img[..., :3].std() > 0.05  # a picture, not a blank page
@@ -109,7 +110,7 @@ def test_viewer_point_cloud(proto, ds):
     np.testing.assert_array_equal(positions, np.stack([x[ok], y[ok], z[ok]]))
     darkest = np.argmin(values)  # the stiffest point is drawn in viridis' darkest colour
     np.testing.assert_allclose(colours[:, darkest], matplotlib.colormaps["viridis"](0.0)[:3])
-    with viewer.Scene(proto) as scene:
+    with viewer.scene(proto) as scene:
         assert viewer_atlas.show_atlas(scene, ds, "compliance_max", theta=0.4) == (lo, hi)
         assert "atlas: compliance_max" in scene.legend[-1]
 
@@ -126,7 +127,7 @@ def test_the_viewer_draws_the_quantities_the_atlas_holds(proto, ds):
     np.testing.assert_allclose(colours, colours_1, rtol=0, atol=1e-12)
     with pytest.raises(ParameterError, match="quantity must be one of the atlas's"):
         viewer_atlas.atlas_points(ds.drop_vars("cond_J"), "cond_J")
-    with viewer.Scene(proto) as scene:
+    with viewer.scene(proto) as scene:
         viewer_atlas.show_atlas(scene, extra, "doubled", theta=0.4)
         assert scene.legend[-1].endswith("m/N (twice)")
 
@@ -137,7 +138,7 @@ def test_cli_writes_the_atlas(proto, tmp_path):
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "6 of 6 poses reachable" in out.stdout
-    got = atlas.open_atlas(tmp_path / "a.nc")
+    got = store.open_store(tmp_path / "a.nc")
     want = atlas.atlas(proto, [-0.1, 0.0, 0.1], [0.0, 0.1], [-0.6], [0.2], progress=False)
     assert got.equals(want)
 
@@ -335,7 +336,7 @@ def test_streamed_atlas_equals_the_one_in_memory(proto, grid, ds, tmp_path):
         got = atlas.atlas(proto, **grid, model="consistent", chunk=chunk, progress=False, out=path)
         assert got.chunks["y"][0] == (5 if chunk == 50 else 1) and got.chunks["x"][0] == min(9, chunk)
         assert type(got.compliance_max.data).__module__.startswith("dask")
-        assert got.equals(ds) and atlas.open_atlas(path).equals(ds)
+        assert got.equals(ds) and store.open_store(path).equals(ds)
         assert got.attrs == ds.attrs and got.status.attrs["flag_meanings"] == ds.status.attrs["flag_meanings"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s4.zarr", "s50.zarr"]
     files = [p for p in (tmp_path / "s4.zarr").rglob("*") if p.is_file()]
@@ -359,13 +360,13 @@ def test_a_killed_stream_resumes_from_its_blocks(proto, grid, ds, tmp_path, monk
     monkeypatch.setattr(atlas._derived, "atlas_fields", killed_at_4)
     with pytest.raises(KeyboardInterrupt):
         atlas.stream(proto, **grid, model="consistent", chunk=18, progress=False, out=path)
-    assert not path.exists() and atlas.partial_path(path).is_dir()
+    assert not path.exists() and store.partial_path(path).is_dir()
     n_blocks = 2 * 2 * 4  # theta x z x ceil(7 rows / 2 rows per block)
     calls.clear()
     monkeypatch.setattr(atlas._derived, "atlas_fields", lambda *a: (calls.append(len(a[2])), real(*a)))
     got = atlas.stream(proto, **grid, model="consistent", chunk=18, progress=False, out=path)
     assert len(calls) == n_blocks - 3 and sum(calls) == ds.status.size - 3 * 18
-    assert got.equals(ds) and not atlas.partial_path(path).exists()
+    assert got.equals(ds) and not store.partial_path(path).exists()
     with pytest.raises(KeyboardInterrupt):  # another grid, killed: its partial store is left
         calls.clear()
         monkeypatch.setattr(atlas._derived, "atlas_fields", killed_at_4)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Flexible links (h4pin.elastic.Beam, Mechanism.with_beams): a cantilever and an L-shaped frame
+"""Flexible links (h4pin.mechanism.Beam, Mechanism.with_beams): a cantilever and an L-shaped frame
 against their hand formulas, and two robots of the corpus with a beam on every link against an
 independent frame model written here by the direct stiffness method (12 x 12 Euler-Bernoulli
 elements between a link's joint origin and its far end, rigid links as single nodes, joints as
@@ -15,9 +15,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Beam, Mechanism
-from h4pin.elastic.beams import insertion
 from h4pin.errors import H4Error, MechanismWarning, ParameterError
+from h4pin.mechanism import Beam, Mechanism
+from h4pin.mechanism.beams import insertion
 
 ROBOTS = Path(__file__).parent / "robots"
 ALU = {"E": 70e9, "G": 26e9}

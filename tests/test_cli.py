@@ -56,7 +56,7 @@ def test_table2_prints_the_computed_block(proto, centre):
      (["table2", "--variant", "symmetric"], "singular"),
      (["table2", "--urdf", "missing.urdf"], "no URDF file"),
      (["table2", "--model", "exact"], "Invalid value for '--model': 'exact' is not one of 'paper', 'consistent'."),
-     (["export", "--out", "h4.xml", "--mjcf", "h4.xml"], "give --out, not both --out and --mjcf"),
+     (["export", "--out", "h4.xml", "--mjcf", "h4.xml"], "No such option: --mjcf"),
      (["export"], "Missing option '--out'.")],
 )
 def test_cli_errors_are_one_line(args, message):
@@ -123,7 +123,7 @@ def test_cli_reference_is_generated_from_the_cli():
 
 def test_one_convention_over_the_commands():
     """--model defaults to 'paper' (as h4pin.compliance; cycle aside); outputs are --out, --figure or --figures
-    (the old names hidden) with --overwrite; --quiet wherever a progress bar runs; --payload is
+    (the old names, removed in 0.2, are refused) with --overwrite; --quiet wherever a progress bar runs; --payload is
     one shape (KG, >= 0)."""
     import inspect
 
@@ -133,14 +133,14 @@ def test_one_convention_over_the_commands():
         visible = {opt for p in command.params if not p.hidden for opt in p.opts}
         if "model" in params:  # cycle: cli.CYCLE_MODEL, until its dynamics take the paper model
             assert params["model"].default == ("consistent" if name == "cycle" else "paper"), name
-        assert not visible & set(cli.RENAMED), name
+        assert not visible & set(REMOVED), name
         writes = bool(visible & {"--out", "--figure", "--figures"})
         assert ("--overwrite" in visible) == writes, name
         assert ("--quiet" in visible) == (name in ("view", "tolerance", "atlas", "sweep", "warmup")), name
         if "payload" in params:
             assert params["payload"].metavar == "KG", name
     hidden = {opt for c in COMMANDS.values() for p in c.params if p.hidden for opt in p.opts}
-    assert hidden == set(cli.RENAMED)
+    assert hidden == set()
 
 
 run_main = run_cli_in_process  # tests/conftest.py
@@ -153,17 +153,15 @@ def test_a_wrong_model_is_a_usage_error_naming_the_choices(command, monkeypatch,
     assert err == "error: Invalid value for '--model': 'exact' is not one of 'paper', 'consistent'.\n"
 
 
-def test_old_option_names_still_work_with_a_warning(tmp_path, monkeypatch, capsys):
-    """An old name is taken, with a one-line warning on stderr once the arguments passed their
-    checks: its errors stay one line and name the option as typed."""
-    code, _, err = run_main(["modes", "--map", str(tmp_path / "m.txt")], monkeypatch, capsys)
-    assert code == 2 and err == f"error: --map {tmp_path / 'm.txt'}: the name must end in .png\n"
-    if importlib.util.find_spec("mujoco") is None:
-        pytest.skip("the export needs the mujoco extra")
-    out = run_cli("export", "--mjcf", str(tmp_path / "h4.xml"))
-    assert out.returncode == 0, out.stderr
-    assert out.stderr == "h4pin: --mjcf is deprecated, use --out (--mjcf goes in the next release)\n"
-    assert out.stdout == f"wrote {tmp_path / 'h4.xml'}\n" and "<mujoco" in (tmp_path / "h4.xml").read_text()
+#: The options renamed in 0.1 (deprecated for one release) and removed in 0.2 (CHANGELOG.md).
+REMOVED = {"view": "--html", "export": "--mjcf", "modes": "--map", "sweep": "--pareto"}
+
+
+@pytest.mark.parametrize("command", sorted(REMOVED))
+def test_the_old_option_names_are_gone(command, tmp_path, monkeypatch, capsys):
+    """An option renamed in 0.1 is refused in 0.2, in one line naming it."""
+    code, _, err = run_main([command, REMOVED[command], str(tmp_path / "x")], monkeypatch, capsys)
+    assert code == 2 and err.startswith(f"error: No such option: {REMOVED[command]}") and err.count("\n") == 1
 
 
 #: Each command that writes a file: its arguments (small and quick), the option and name of the file.

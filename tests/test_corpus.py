@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Every closed-loop robot of the corpus (tests/robots/corpus.yaml: Gepetto's example-parallel-
-robots, read as their authors' loader reads them) through h4pin.elastic.Mechanism: it loads, its
+robots, read as their authors' loader reads them) through h4pin.mechanism.Mechanism: it loads, its
 motors are the sidecar's, it assembles by default inside its ranges, and its compliance and
 natural frequencies agree with independent routes built from Pinocchio's frame Jacobians and the
 sidecar's own closure definitions (tests/kkt.py, shared with tests/test_mechanism.py):
@@ -23,9 +23,9 @@ import pinocchio as pin
 import pytest
 from kkt import constraint_rows, kkt_compliance, mass_matrix, spring_vector
 
-from h4pin.elastic import Mechanism
-from h4pin.elastic.engine import UnassembledError
 from h4pin.errors import MechanismWarning
+from h4pin.mechanism import Mechanism
+from h4pin.mechanism.engine import UnassembledError
 
 yaml = pytest.importorskip("yaml")
 scipy_linalg = pytest.importorskip("scipy.linalg")

@@ -15,8 +15,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Mechanism
 from h4pin.errors import H4Error, UnsupportedFeatureError
+from h4pin.mechanism import Mechanism
 
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
@@ -66,7 +66,7 @@ def _coupling_rows(mj, model, mech, q_mj):
 
 @pytest.mark.parametrize("path", sorted(LOADED))
 def test_loads_assembles_and_agrees_with_kkt(path):
-    from h4pin.elastic import mjcf_reader
+    from h4pin.mechanism import mjcf_reader
 
     motors, out = LOADED[path]
     mech = Mechanism.from_mjcf(HERE / path, actuated=motors)
@@ -108,7 +108,7 @@ def test_loads_assembles_and_agrees_with_kkt(path):
     for name, value in springs.items():
         jm = model.joints[model.getJointId(name)]
         k[jm.idx_v:jm.idx_v + jm.nv] = value
-    from h4pin.elastic.engine import frame_id
+    from h4pin.mechanism.engine import frame_id
 
     fid = frame_id(model, out)
     jo = pin.getFrameJacobian(model, d, fid, pin.LOCAL_WORLD_ALIGNED)

@@ -24,7 +24,9 @@ from conftest import sample_poses
 
 import h4pin
 from h4pin.description.elements import ELEMENTS, ILLUSTRATIVE, RIGIDITIES, Elements
-from h4pin.elastic import (
+from h4pin.elastic import elastic_model
+from h4pin.kinematics.closed_form import centre_pose
+from h4pin.mechanism import (
     FrameOutput,
     Insertion,
     JointOutput,
@@ -32,10 +34,8 @@ from h4pin.elastic import (
     UnrestrainedMotionError,
     VirtualJoint,
     compliance_matrix,
-    elastic_model,
     insert_joints,
 )
-from h4pin.kinematics.closed_form import centre_pose
 
 TOL = 1e-9
 

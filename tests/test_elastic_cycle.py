@@ -155,8 +155,8 @@ def test_vector_coordinates_give_the_same_mass_and_load(h4, cycle):
 
 def _spring_basis(h4, em, mm, q, names):
     """T at q: the admissible motions with the actuators locked, normalised on the springs."""
-    from h4pin.elastic import engine
     from h4pin.elastic.modal import admissible_basis
+    from h4pin.mechanism import engine
 
     d = mm.createData()
     pin.computeJointJacobians(mm, d, q)
@@ -198,8 +198,8 @@ def test_a_slow_cycle_is_quasi_static_and_a_fast_one_is_not(h4):
 
 def _mujoco_elastic():
     mujoco = pytest.importorskip("mujoco")
-    from h4pin.elastic.mjcf_writer import version
     from h4pin.io import mjcf
+    from h4pin.mechanism.mjcf_writer import version
 
     if version(mujoco.__version__) < version(mjcf.MIN_MUJOCO_ELASTIC):
         pytest.skip(f"the elastic export needs MuJoCo >= {mjcf.MIN_MUJOCO_ELASTIC}")

@@ -108,7 +108,7 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["sweep", "--out", str(folder)], "is not a zarr store"),
         (["sweep", "--out", str(a_file)], "is a file"),
         (["sweep", "--out", str(tmp / "no" / "s.zarr")], "does not exist"),
-        (["sweep", "--out", str(tmp / "s.zarr"), "--pareto", str(tmp / "p.txt")], "must end in .png"),
+        (["sweep", "--out", str(tmp / "s.zarr"), "--figure", str(tmp / "p.txt")], "must end in .png"),
         (["sweep", "--out", str(tmp / "s.zarr"), "--urdf-dir", str(tmp / "nowhere")], "does not exist"),
         (["sweep", "--out", str(tmp / "s.zarr"), "--scheduler", "tcp://127.0.0.1:9"], "cannot reach a Dask"),
         (["atlas", "--out", str(tmp / "a.txt")], "must end in .nc or .zarr"),
@@ -121,19 +121,19 @@ def cli_cases(tmp: Path) -> list[tuple[list[str], str]]:
         (["atlas", "--out", str(tmp / "a.nc"), "--x", "-1", "1", "0"], "N >= 1"),
         (["view", "--host", "999.1.1.1"], "cannot listen there"),
         (["view", "--host", "8.8.8.8"], "cannot listen there"),
-        (["view", "--html", str(tmp / "no" / "v.html")], "does not exist"),
-        (["view", "--html", str(folder)], "is a folder"),
+        (["view", "--out", str(tmp / "no" / "v.html")], "does not exist"),
+        (["view", "--out", str(folder)], "is a folder"),
         (["tolerance", "--sigma", "forearm=1e9"], "not a manufacturing tolerance"),
         (["tolerance", "--sigma", "forearm=-1"], "must be finite and >= 0"),
         (["tolerance", "--sigma", "bogus=1e-4"], "unknown tolerance"),
         (["tolerance", "--robots", "0"], "--robots must be >= 1"),
         (["tolerance", "--figure", str(tmp / "t.txt")], "must end in .png"),
-        (["export", "--mjcf", str(folder)], "is a folder"),
+        (["export", "--out", str(folder)], "is a folder"),
         (["atlas", "--out", "/proc/atlas.nc"], "cannot write in /proc"),
         (["sweep", "--out", "/proc/s.zarr"], "cannot write in /proc"),
-        (["view", "--html", "/proc/v.html"], "cannot write in /proc"),
+        (["view", "--out", "/proc/v.html"], "cannot write in /proc"),
         (["tolerance", "--figure", "/proc/t.png"], "cannot write in /proc"),
-        (["export", "--mjcf", "/proc/h4.xml"], "cannot write in /proc"),
+        (["export", "--out", "/proc/h4.xml"], "cannot write in /proc"),
         (["table2", "--variant", "nope"], "Invalid value for '--variant'"),
         (["table2", "--model", "exact"], "Invalid value for '--model'"),
     ]
@@ -248,7 +248,7 @@ def test_atlas_killed_while_saving_leaves_nothing_behind(tmp_path):
     args = ["atlas", "--x", "-0.2", "0.2", "301", "--y", "-0.2", "0.2", "301", "--quiet"]
     whole = run_to_end(h4pin_cmd(*args, "--out", "whole.zarr"), tmp_path)
     assert whole.returncode == 0, whole.stderr
-    from h4pin.studies.atlas import open_atlas
+    from h4pin.mechanism.store import open_store as open_atlas
 
     ref = open_atlas(tmp_path / "whole.zarr")
     for k, delay in enumerate((0.5, 2.0, 3.0)):
@@ -272,6 +272,7 @@ def test_what_a_kill_during_a_save_leaves_is_removed_by_the_next_save(tmp_path, 
     """A save killed half-way leaves ``.NAME.h4pin-tmp-PID-*`` beside its target (its process is
     dead): the next write to that target removes it; a live process's temporary is kept."""
     from h4pin.files import write_text
+    from h4pin.mechanism import store
     from h4pin.studies import atlas
 
     ds = atlas.atlas(proto, [0.0, 0.01], [0.0], [-0.6], progress=False)
@@ -284,8 +285,8 @@ def test_what_a_kill_during_a_save_leaves_is_removed_by_the_next_save(tmp_path, 
         if name == "page.html":
             write_text(tmp_path / name, "<html></html>")
         else:
-            atlas.save(ds, tmp_path / name)
-            np.testing.assert_array_equal(atlas.open_atlas(tmp_path / name).status.values, ds.status.values)
+            store.save(ds, tmp_path / name)
+            np.testing.assert_array_equal(store.open_store(tmp_path / name).status.values, ds.status.values)
         assert not stale.exists() and alive.exists()
         alive.unlink()
 

@@ -13,8 +13,9 @@ from kkt import constraint_rows, mass_matrix, nullspace_frequencies, spring_vect
 
 import h4pin  # noqa: E402
 from h4pin import verdicts  # noqa: E402
-from h4pin.elastic import Payload, modes  # noqa: E402
+from h4pin.elastic import modes  # noqa: E402
 from h4pin.elastic.modal import mass_model  # noqa: E402
+from h4pin.mechanism import Payload
 from h4pin.studies import frequency  # noqa: E402
 
 

@@ -94,8 +94,8 @@ def test_warmup_compiles_every_gated_function():
     the fallback for good): run in this process, every gate is ready afterwards, each step
     reported once, in order."""
     from h4pin import warmup
-    from h4pin.elastic import batch
     from h4pin.kinematics import pinocchio as kin
+    from h4pin.mechanism import batch
     from h4pin.stiffness import frequencies, kernel
 
     seen: list[str] = []

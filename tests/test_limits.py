@@ -324,8 +324,8 @@ def test_elements_have_plausible_ranges_everywhere_they_enter():
 
 
 def test_payloads_are_typed_and_ranged():
-    from h4pin.elastic import Payload
     from h4pin.limits import ImplausibleValueError
+    from h4pin.mechanism import Payload
 
     with pytest.raises(h4pin_errors().ParameterError, match="not text"):
         Payload("0.5")
@@ -339,7 +339,7 @@ def test_payloads_are_typed_and_ranged():
 def test_mechanism_outputs_are_checked():
     import math
 
-    from h4pin.elastic import FrameOutput, JointOutput
+    from h4pin.mechanism import FrameOutput, JointOutput
 
     err = h4pin_errors().ParameterError
     with pytest.raises(err, match="scale must be a finite non-zero number, got nan"):

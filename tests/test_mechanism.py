@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""h4pin.elastic.Mechanism: any closed-loop robot read from its own files (URDF + the closed-loop
+"""h4pin.mechanism.Mechanism: any closed-loop robot read from its own files (URDF + the closed-loop
 toolbox's YAML sidecar, MJCF equalities), assembled, its compliance and its natural frequencies,
 each against an independent route."""
 
@@ -12,9 +12,9 @@ from kkt import constraint_rows, kkt_compliance, mass_matrix, nullspace_frequenc
 
 import h4pin
 from h4pin import ParameterError
-from h4pin.elastic import Mechanism
-from h4pin.elastic.engine import UnassembledError, UnrestrainedMotionError
 from h4pin.kinematics.closed_form import centre_pose
+from h4pin.mechanism import Mechanism
+from h4pin.mechanism.engine import UnassembledError, UnrestrainedMotionError
 from h4pin.robot import urdf_dir
 
 ROOT = urdf_dir().parent
@@ -71,7 +71,7 @@ def test_the_h4_from_its_mjcf(h4, pose):
     assert max(max(e) for e in mech.closure_errors(q).values()) <= 1e-10
     d = mech.model.createData()
     pin.framesForwardKinematics(mech.model, d, q)
-    from h4pin.elastic.engine import frame_id
+    from h4pin.mechanism.engine import frame_id
 
     np.testing.assert_allclose(d.oMf[frame_id(mech.model, "D")].translation, pose[:3], rtol=0, atol=1e-9)
     kc = h4.geometry.springs["kc"]
@@ -87,7 +87,8 @@ def test_the_elastic_h4_is_a_mechanism(h4, pose):
     frequency), A from ``getFrameJacobian`` at the closures' anchors and the locked actuators'
     rows: none of the engine's scaling, null-space or condensation code."""
     em = h4pin.elastic_model(h4)
-    mech = Mechanism.from_elastic(em)
+    mech = em.mechanism
+    assert mech is em.mechanism and isinstance(mech, Mechanism)  # made once, kept
     q = em.configuration(pose)
     C = mech.compliance(q, em.stiffness, ["D"], locked=em.locked)
     a, d = constraint_rows(mech.model, mech.constraint_models, q, em.locked)
@@ -180,7 +181,7 @@ def test_robots_from_elsewhere(robot):
     G = _motion_per_motor(mech, q, held)
     d = mech.model.createData()
     pin.computeJointJacobians(mech.model, d, q)
-    from h4pin.elastic.engine import frame_id
+    from h4pin.mechanism.engine import frame_id
 
     J = pin.getFrameJacobian(mech.model, d, frame_id(mech.model, frame), pin.LOCAL_WORLD_ALIGNED) @ G
     want = J @ np.diag(1.0 / k) @ J.T
@@ -221,12 +222,12 @@ def test_the_viewer_draws_any_mechanism_and_its_ellipsoid(no_process_left):
 
     import umsgpack
 
-    from h4pin.io import viewer
+    from h4pin.mechanism import scene as scene_module
 
     five_bar = Mechanism.from_urdf(ROBOTS / "5bar_linkage_iso3d" / "robot.urdf")
     q = five_bar.assemble(pin.neutral(five_bar.model) + 0.05)
     springs = {"mot1": 2.0e3, "mot2": 3.0e3}
-    with viewer.show_mechanism(five_bar, q, springs, "closedloop3D_1B", scale=1.0) as scene:
+    with scene_module.show(five_bar, q, springs, "closedloop3D_1B", scale=1.0) as scene:
         page = scene.html()
     objects = {}
     for blob in re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", page):
@@ -242,24 +243,29 @@ def test_the_viewer_draws_any_mechanism_and_its_ellipsoid(no_process_left):
     radii = np.linalg.eigvalsh(block) * 1e6 * 1e-3  # 1 mm per um/N
     np.testing.assert_allclose(np.sort(drawn), np.sort(np.maximum(radii, 1e-5)), rtol=1e-6)
     with pytest.raises(ParameterError, match="Mechanism"):
-        viewer.show_mechanism("five bar", q)
+        scene_module.show("five bar", q)
 
 
 def test_one_meaning_per_name_and_the_old_names_warn(h4, pose):
     """h4pin.compliance returns a Compliance; the arrays are compliance_matrix (engine, ElasticH4);
-    h4pin.elastic.modes is the function, its module h4pin.elastic.modal. The old names work one
-    release, with a DeprecationWarning, and give the same numbers."""
+    h4pin.elastic.modes is the function, its module h4pin.elastic.modal. The names deprecated in
+    0.1 are gone in 0.2; the generic names that moved from h4pin.elastic to h4pin.mechanism still
+    resolve, with a DeprecationWarning naming the release that removes them, to the same objects."""
+    import importlib
+
     import h4pin.elastic as elastic
-    from h4pin.elastic import engine, modal
+    from h4pin import deprecations
+    from h4pin.elastic import modal
+    from h4pin.mechanism import engine
 
     assert callable(elastic.modes) and elastic.modes is modal.modes
     em = h4pin.elastic_model(h4)
-    new = em.compliance_matrix(pose)
-    with pytest.warns(DeprecationWarning, match="compliance_matrix"):
-        old = em.compliance(pose)
-    np.testing.assert_array_equal(old, new)
-    with pytest.warns(DeprecationWarning, match="compliance_matrix"):
-        assert elastic.compliance is engine.compliance_matrix
-    with pytest.warns(DeprecationWarning, match="h4pin.elastic.modal"):
-        from h4pin.elastic.modes import mass_model
-    assert mass_model is modal.mass_model
+    assert em.compliance_matrix(pose).shape == (8, 8)
+    for owner, name in ((em, "compliance"), (elastic, "compliance"), (elastic, "MechanismModes"),
+                        (engine, "SINGULAR_COND"), (engine, "compliance"), (h4pin, "Frequencies")):
+        assert not hasattr(owner, name), name
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("h4pin.elastic.modes")
+    for old, (new, removed) in deprecations.MOVED["h4pin.elastic"].items():
+        with pytest.warns(DeprecationWarning, match=f"removed in h4pin {removed}"):
+            assert getattr(elastic, old) is deprecations.resolve(new)

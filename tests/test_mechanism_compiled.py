@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The compiled generic path (h4pin.elastic.compiled, through h4pin.elastic.batch) against the
-Pinocchio route (h4pin.elastic.engine with Pinocchio's Jacobians, SVD null space and CRBA) on
+"""The compiled generic path (h4pin.mechanism.compiled, through h4pin.mechanism.batch) against the
+Pinocchio route (h4pin.mechanism.engine with Pinocchio's Jacobians, SVD null space and CRBA) on
 every robot of the corpus that assembles, and the batch calls of Mechanism: a batch gives what
 one configuration gives, threads change nothing, a configuration the compiled path cannot judge
 gets the Pinocchio route's error with its index, and assembly over motor positions."""
@@ -14,11 +14,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Beam, FrameOutput, JointOutput, Mechanism, Payload
-from h4pin.elastic import compiled as cp
-from h4pin.elastic.engine import UnassembledError, UnrestrainedMotionError
 from h4pin.errors import H4Error, MechanismWarning, ParameterError
 from h4pin.limits import TooLargeError
+from h4pin.mechanism import Beam, FrameOutput, JointOutput, Mechanism, Payload
+from h4pin.mechanism import compiled as cp
+from h4pin.mechanism.engine import UnassembledError, UnrestrainedMotionError
 
 yaml = pytest.importorskip("yaml")
 

@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import FrameOutput, JointOutput, Mechanism
 from h4pin.errors import H4Error, MechanismWarning
+from h4pin.mechanism import FrameOutput, JointOutput, Mechanism
 
 yaml = pytest.importorskip("yaml")
 

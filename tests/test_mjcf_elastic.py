@@ -22,11 +22,11 @@ import pinocchio as pin
 import pytest
 
 import h4pin
-from h4pin.elastic.mjcf_writer import version
 from h4pin.errors import ParameterError
 from h4pin.files import unmarked
 from h4pin.io import mjcf
 from h4pin.kinematics.closed_form import centre_pose
+from h4pin.mechanism.mjcf_writer import version
 
 mujoco = pytest.importorskip("mujoco")
 

@@ -13,8 +13,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Mechanism
 from h4pin.errors import UnsupportedFeatureError
+from h4pin.mechanism import Mechanism
 
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
@@ -41,7 +41,7 @@ def _random_qpos(mj, rng):
 
 @pytest.mark.parametrize("name", ["loop", "floating"])
 def test_kinematics_agree_with_mujoco(name):
-    from h4pin.elastic import mjcf_reader
+    from h4pin.mechanism import mjcf_reader
 
     mech = Mechanism.from_mjcf(HERE / f"{name}.xml")
     mj = mujoco.MjModel.from_xml_path(str(HERE / f"{name}.xml"))
@@ -91,7 +91,7 @@ def test_what_cannot_be_represented_is_refused_by_name():
 def test_a_joint_coupling_is_a_constraint_that_holds_as_mujoco_holds_it():
     """coupled.xml: rocker_pitch = coupler_roll (polycoef 0 1): a JointCoupling, kept by the
     assembly, and MuJoCo's own equality residual (efc_pos) is 0 at the assembled state."""
-    from h4pin.elastic import mjcf_reader
+    from h4pin.mechanism import mjcf_reader
 
     mech = Mechanism.from_mjcf(HERE / "coupled.xml")
     assert [(c.joint1, c.joint2, c.poly[:2]) for c in mech.couplings] == [("rocker_pitch", "coupler_roll", (0.0, 1.0))]

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Any mechanism as an elastic MuJoCo file (``Mechanism.to_mjcf``, h4pin.elastic.mjcf_writer).
+"""Any mechanism as an elastic MuJoCo file (``Mechanism.to_mjcf``, h4pin.mechanism.mjcf_writer).
 
 The reference is h4pin's, computed without MuJoCo: the compliance of ``Mechanism.compliance``
 (Pinocchio's Jacobians and the closures' null space). MuJoCo integrates the written file: a
@@ -19,9 +19,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Beam, FrameOutput, Mechanism, UnassembledError
-from h4pin.elastic import mjcf_writer as mw
 from h4pin.errors import MechanismWarning, ParameterError, UnsupportedFeatureError
+from h4pin.mechanism import Beam, FrameOutput, Mechanism, UnassembledError
+from h4pin.mechanism import mjcf_writer as mw
 
 mujoco = pytest.importorskip("mujoco")
 if mw.version(mujoco.__version__) < mw.version(mw.MIN_MUJOCO_ELASTIC):

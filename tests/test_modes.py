@@ -26,9 +26,10 @@ from conftest import sample_poses
 
 import h4pin
 from h4pin.description.elements import ILLUSTRATIVE
-from h4pin.elastic import Modes, Payload, elastic_model, modes
+from h4pin.elastic import elastic_model, modes
 from h4pin.elastic.modal import mass_model
 from h4pin.kinematics.closed_form import centre_pose, rot_z
+from h4pin.mechanism import Modes, Payload
 
 TOL = 1e-8
 BODY = Payload(0.5, com=[0.01, -0.02, -0.06], inertia=[[2e-3, 1e-4, 0.0], [1e-4, 1.5e-3, -2e-4], [0.0, -2e-4, 1e-3]])

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The motor-space atlas of any closed-loop robot (h4pin.studies.motor_atlas) against routes that
+"""The motor-space atlas of any closed-loop robot (h4pin.mechanism.atlas) against routes that
 share nothing with its loop: Mechanism.assemble and Mechanism.compliance called directly, the
 loops' own closure errors, an uninterrupted run for a resumed one; its CLI and its figure."""
 
@@ -13,12 +13,11 @@ import pytest
 import xarray as xr
 from conftest import run_cli_in_process
 
-from h4pin.elastic import Mechanism
-from h4pin.elastic.engine import UnassembledError
 from h4pin.errors import ParameterError
 from h4pin.limits import TooLargeError
-from h4pin.studies import atlas as h4_atlas
-from h4pin.studies import motor_atlas
+from h4pin.mechanism import Mechanism, store
+from h4pin.mechanism import atlas as motor_atlas
+from h4pin.mechanism.engine import UnassembledError
 
 ROBOTS = Path(__file__).resolve().parent / "robots"
 DELTA = ROBOTS / "robot_delta" / "robot.urdf"
@@ -101,7 +100,7 @@ def test_a_stopped_stream_resumes_to_the_uninterrupted_store(five_bar, tmp_path)
     whole = motor_atlas.atlas(five_bar, TOOL, axes, progress=False, chunk=5)
     out = tmp_path / "five.zarr"
     assert motor_atlas.stream(five_bar, TOOL, axes, out=out, chunk=5, progress=False, stop_after=1) is None
-    assert h4_atlas.partial_path(out).is_dir() and not out.exists()
+    assert store.partial_path(out).is_dir() and not out.exists()
     calls = []
     real = motor_atlas._Run.block
 
@@ -116,10 +115,10 @@ def test_a_stopped_stream_resumes_to_the_uninterrupted_store(five_bar, tmp_path)
         motor_atlas._Run.block = real
     assert calls == [5, 5, 5]
     xr.testing.assert_identical(resumed, whole)
-    assert not h4_atlas.partial_path(out).exists()
-    h4_atlas.check_out(out)  # an h4pin atlas: the H4 atlas's rule lets a run replace it
+    assert not store.partial_path(out).exists()
+    store.check_out(out)  # an h4pin atlas: the H4 atlas's rule lets a run replace it
     again = motor_atlas.atlas(five_bar, TOOL, axes, progress=False, out=tmp_path / "five.nc")
-    xr.testing.assert_identical(h4_atlas.open_atlas(tmp_path / "five.nc"), again)
+    xr.testing.assert_identical(store.open_store(tmp_path / "five.nc"), again)
 
 
 def test_bad_input_is_refused_by_name(five_bar):
@@ -148,7 +147,7 @@ def test_cli_writes_the_store_and_the_maps(tmp_path, monkeypatch, capsys):
         monkeypatch, capsys)
     assert code == 0, err
     assert "12 of 12 grid points assembled" in stdout
-    ds = h4_atlas.open_atlas(out)
+    ds = store.open_store(out)
     assert motor_atlas.motors(ds) == ["mot1_rod1", "mot1_rod2"] and ds.status.shape == (3, 4)
     assert np.isfinite(ds.first_frequency.values).all()
     for q in ("compliance_max", "first_frequency", "status"):

@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from h4pin.errors import ParameterError
-from h4pin.io import viewer
+from h4pin.mechanism import scene
 from h4pin.studies.serial import UR5_JOINT_STIFFNESS, serial_compliance
 
 erd = pytest.importorskip("example_robot_data")
@@ -116,7 +116,7 @@ class _Recorder:
 def test_ellipsoid_of_the_arm_is_drawn_at_the_tool(ur5):
     res = serial_compliance(ur5.model, ur5.data, UR5_CONFIGS[1], "tool0", UR5_JOINT_STIFFNESS)
     vis = _Recorder()
-    scale = viewer.draw_ellipsoid(vis, "ur5/compliance", res.translational, res.position)
+    scale = scene.draw_ellipsoid(vis, "ur5/compliance", res.translational, res.position)
     tf = vis.transforms["ur5/compliance"]
     np.testing.assert_allclose(tf[:3, 3], res.position)
     drawn = np.asarray(vis.objects["ur5/compliance"].radii)

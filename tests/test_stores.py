@@ -22,6 +22,7 @@ from h4pin.errors import ParameterError
 pytest.importorskip("zarr")
 pytest.importorskip("xarray")
 
+from h4pin.mechanism import store  # noqa: E402
 from h4pin.studies import atlas, sweep  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -55,12 +56,12 @@ def test_the_tag_alone_makes_a_store_h4pins(tmp_path, small_atlas):
     """The attribute with a known format and version, nothing else: an atlas and a sweep store
     carry it; a user's store that says kind: atlas (or holds the word h4pin), one of an older
     h4pin (h4pin: atlas, no tag), one of a future format version and one with a malformed tag do not."""
-    a = atlas.save(small_atlas, tmp_path / "a.zarr")
+    a = store.save(small_atlas, tmp_path / "a.zarr")
     s = sweep.run(tmp_path / "s.zarr", SPEC, stop_after=0, progress=False)
     assert s["done"].tolist() == [False, False]
     assert files.store_format(a) == "atlas" and files.store_format(tmp_path / "s.zarr") == "sweep"
     assert files.written_by_h4pin(a) and files.written_by_h4pin(tmp_path / "s.zarr")
-    assert "h4pin_store" not in atlas.open_atlas(a).attrs  # the store's tag, not the atlas's data
+    assert "h4pin_store" not in store.open_store(a).attrs  # the store's tag, not the atlas's data
     others = {"kind": {"kind": "atlas", "note": "h4pin", "h4pin_stores": "atlas"},
               "older": {"h4pin": "atlas", "title": "H4 workspace atlas"},
               "future": {"h4pin_store": {"format": "atlas", "version": 2}},
@@ -96,23 +97,23 @@ def test_overwrite_replaces_a_zarr_store_never_another_folder(tmp_path, small_at
     store by a new sweep; a folder that is not a zarr store is refused even then."""
     path = user_store(tmp_path / "mine.zarr", {"kind": "atlas"})
     with pytest.raises(ParameterError, match="h4pin did not write it"):
-        atlas.save(small_atlas, path)
-    atlas.save(small_atlas, path, overwrite=True)
+        store.save(small_atlas, path)
+    store.save(small_atlas, path, overwrite=True)
     assert files.store_format(path) == "atlas" and not (path / "data.bin").exists()
-    assert atlas.open_atlas(path).equals(small_atlas)
+    assert store.open_store(path).equals(small_atlas)
 
-    store = user_store(tmp_path / "other.zarr", {"kind": "sweep", "spec": SPEC.to_json()})
+    other = user_store(tmp_path / "other.zarr", {"kind": "sweep", "spec": SPEC.to_json()})
     with pytest.raises(ParameterError, match="other.zarr exists and h4pin did not write it"):
-        sweep.run(store, SPEC, stop_after=0, progress=False)
-    assert (store / "data.bin").exists()
-    res = sweep.run(store, SPEC, stop_after=1, progress=False, overwrite=True)
-    assert res["done"].tolist() == [True, False] and files.store_format(store) == "sweep"
-    assert not (store / "data.bin").exists()
+        sweep.run(other, SPEC, stop_after=0, progress=False)
+    assert (other / "data.bin").exists()
+    res = sweep.run(other, SPEC, stop_after=1, progress=False, overwrite=True)
+    assert res["done"].tolist() == [True, False] and files.store_format(other) == "sweep"
+    assert not (other / "data.bin").exists()
 
     plain = tmp_path / "photos.zarr"
     plain.mkdir()
     (plain / "cat.jpg").write_bytes(b"\xff\xd8")
-    for call in (lambda: atlas.save(small_atlas, plain, overwrite=True),
+    for call in (lambda: store.save(small_atlas, plain, overwrite=True),
                  lambda: sweep.run(plain, SPEC, progress=False, overwrite=True)):
         with pytest.raises(ParameterError, match="is not a zarr store: give a new path"):
             call()
@@ -170,7 +171,7 @@ def test_a_second_process_is_refused_in_one_line(tmp_path, small_atlas):
                                   "wait for it to finish, or give another path\n")
     assert not target.exists() and not list(tmp_path.iterdir())
     with files.store_lock(tmp_path / "a.zarr", "atlas"), pytest.raises(ParameterError, match="another h4pin atlas"):
-        atlas.save(small_atlas, tmp_path / "a.zarr")
+        store.save(small_atlas, tmp_path / "a.zarr")
     assert not list(tmp_path.iterdir())
 
 

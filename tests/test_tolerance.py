@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import h4pin
+from h4pin import plots
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
 from h4pin.stiffness.api import compliance
@@ -93,7 +94,7 @@ def test_report_and_sensitivity(proto, poses, tmp_path):
     assert set(sens) == set(tolerance.KINDS)
     text = tolerance.report(res, sens)
     assert "p95" in text and "matters most" in text
-    out = tolerance.write_figure(res, tmp_path / "t.png")
+    out = plots.tolerance(res, tmp_path / "t.png")
     assert out.stat().st_size > 1000
 
 

@@ -23,6 +23,8 @@ import pytest
 from conftest import tagged_processes
 
 from h4pin.io import viewer
+from h4pin.mechanism import scene as scene_module
+from h4pin.mechanism.scene import Scene
 from h4pin.stiffness.api import compliance
 from h4pin.stiffness.deflection import deflected_configuration
 
@@ -93,7 +95,7 @@ def test_ellipsoid_axes_are_deflection_directions(proto, poses):
     """Along each axis a unit force deflects D parallel to it, by the radius (m/N)."""
     for x in poses[:4]:
         k = compliance(proto, x, "consistent").translational
-        radii, axes = viewer.ellipsoid_axes(k)
+        radii, axes = scene_module.ellipsoid_axes(k)
         assert np.linalg.det(axes) == pytest.approx(1.0)
         for r, a in zip(radii, axes.T, strict=True):
             d = k @ a
@@ -143,9 +145,9 @@ def test_scene_refuses_a_bad_load_before_starting_a_server(proto, centre, no_pro
     assert not tagged_processes(no_process_left)
 
 
-def _render(scene: viewer.Scene, tmp: Path, name: str) -> np.ndarray:
+def _render(scene: Scene, tmp: Path, name: str) -> np.ndarray:
     html = scene.write_html(tmp / f"{name}.html")
-    return matplotlib.image.imread(viewer.screenshot(html, tmp / f"{name}.png", size=(800, 600)))[..., :3]
+    return matplotlib.image.imread(scene_module.screenshot(html, tmp / f"{name}.png", size=(800, 600)))[..., :3]
 
 
 @pytest.mark.browser
@@ -153,10 +155,10 @@ def _render(scene: viewer.Scene, tmp: Path, name: str) -> np.ndarray:
 def test_browser_draws_the_robot_and_the_ellipsoid(proto, centre, tmp_path):
     """Headless Chromium renders the page: robot pixels, and the ellipsoid changes only a small,
     green region of the picture."""
-    with viewer.Scene(proto) as bare:
+    with viewer.scene(proto) as bare:
         bare.pose(centre)
         robot = _render(bare, tmp_path, "robot")
-        bare.ellipsoid(centre, scale=2.0)
+        viewer.ellipsoid(bare, centre, scale=2.0)
         bare.legend.clear()  # compare the 3-D scene only
         both = _render(bare, tmp_path, "both")
     orange = (robot[..., 0] > 0.6) & (robot[..., 1] > 0.25) & (robot[..., 1] < 0.6) & (robot[..., 2] < 0.3)
@@ -229,12 +231,12 @@ def test_cli_writes_a_self_contained_page(tmp_path):
 
 @needs_chromium
 def test_screenshot_is_world_readable(proto, centre, tmp_path):
-    with viewer.Scene(proto) as scene:
+    with viewer.scene(proto) as scene:
         scene.pose(centre)
         page = scene.write_html(tmp_path / "h4.html")
     old = os.umask(0o077)
     try:
-        png = viewer.screenshot(page, tmp_path / "h4.png", size=(200, 150))
+        png = scene_module.screenshot(page, tmp_path / "h4.png", size=(200, 150))
     finally:
         os.umask(old)
     assert stat.S_IMODE(png.stat().st_mode) == 0o644
@@ -297,7 +299,7 @@ def start_view(*args: str) -> tuple[subprocess.Popen, int]:
     while "meshcat: http" not in line and time.monotonic() < deadline and proc.poll() is None:
         line = proc.stdout.readline()
     assert "meshcat: http" in line, proc.stderr.read() if proc.poll() is not None else "no URL printed"
-    servers = [pid for pid, cmd in children(proc.pid).items() if "h4pin.io.meshcat_server" in cmd]
+    servers = [pid for pid, cmd in children(proc.pid).items() if "h4pin.mechanism.meshcat_server" in cmd]
     assert len(servers) == 1, children(proc.pid)
     return proc, servers[0]
 
@@ -369,12 +371,13 @@ def test_mode_animation_moves_the_plate_by_the_mode_shape(proto, centre):
     rigidly by amplitude x the mode's plate motion: D by a dD, the bar turned by exp(a dOmega)."""
     import pinocchio as pin
 
-    from h4pin.elastic import Payload, modes
+    from h4pin.elastic import modes
+    from h4pin.mechanism import Payload
 
     payload = Payload(0.5)
-    with viewer.Scene(proto) as scene:
+    with viewer.scene(proto) as scene:
         scene.pose(centre)
-        freq, amp = scene.mode(centre, 1, payload, frames=8)
+        freq, amp = viewer.animate_mode(scene, centre, 1, payload, frames=8)
         anim = _animation(scene.html())
     ref = modes(proto, centre, payload)
     assert freq == pytest.approx(ref.frequencies[1], rel=1e-12)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Any closed-loop robot in the viewer (h4pin.io.viewer_mechanism): the deflected shape against a
+"""Any closed-loop robot in the viewer (h4pin.mechanism.scene): the deflected shape against a
 finite difference of the output's position, the atlas's ellipsoids as stored, a browser render."""
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from h4pin.elastic import Mechanism
 from h4pin.errors import ParameterError
-from h4pin.io import viewer, viewer_mechanism
-from h4pin.studies import motor_atlas
+from h4pin.mechanism import Mechanism
+from h4pin.mechanism import atlas as motor_atlas
+from h4pin.mechanism import scene as scene_module
 
 ROBOTS = Path(__file__).resolve().parent / "robots"
 TOOL = "closedloop3D_1B"
@@ -45,7 +45,7 @@ def test_joint_deflection_moves_the_output_by_its_compliance(five_bar):
     q = five_bar.assemble()
     springs = motor_atlas.default_springs(five_bar)
     force = np.array([3.0, -2.0, 1.0])
-    dq, dy = viewer_mechanism.joint_deflection(five_bar, q, springs, TOOL, force)
+    dq, dy = scene_module.joint_deflection(five_bar, q, springs, TOOL, force)
     C = five_bar.compliance(q, springs, [TOOL])
     np.testing.assert_allclose(dy[:3], C[:3, :3] @ force, rtol=1e-12, atol=1e-18)
     d = five_bar.model.createData()
@@ -59,14 +59,14 @@ def test_joint_deflection_moves_the_output_by_its_compliance(five_bar):
     np.testing.assert_allclose((at(eps) - at(-eps)) / (2 * eps), dy[:3], rtol=1e-5, atol=1e-9 * np.abs(dy).max())
     assert max(max(e) for e in five_bar.closure_errors(pin.integrate(five_bar.model, q, eps * dq)).values()) < 1e-5
     with pytest.raises(ParameterError, match="force"):
-        viewer_mechanism.joint_deflection(five_bar, q, springs, TOOL, [1.0, np.nan, 0.0])
+        scene_module.joint_deflection(five_bar, q, springs, TOOL, [1.0, np.nan, 0.0])
 
 
 def test_page_holds_the_atlas_ellipsoids_and_the_ghost(five_bar):
     """The page draws one ellipsoid per grid point of status 0, at the stored position, with the
     stored radii (one scale), and the ghost and the arrow of the load."""
     ds = motor_atlas.atlas(five_bar, TOOL, {"mot2": (-0.2, 0.2, 3), "mot1": (-0.2, 0.2, 2)}, progress=False)
-    with viewer_mechanism.show(five_bar, atlas=ds, load=[0.0, -5.0, 0.0], size=0.01) as scene:
+    with scene_module.show(five_bar, atlas=ds, load=[0.0, -5.0, 0.0], size=0.01) as scene:
         page = scene.html()
         legend = list(scene.legend)
     objects = _objects(page)
@@ -108,11 +108,12 @@ def test_browser_draws_the_mechanism_and_its_field(five_bar, tmp_path):
     def render(scene, name):
         scene.legend.clear()
         page = scene.write_html(tmp_path / f"{name}.html")
-        return matplotlib.image.imread(viewer.screenshot(page, tmp_path / f"{name}.png", size=(800, 600)))[..., :3]
+        png = scene_module.screenshot(page, tmp_path / f"{name}.png", size=(800, 600))
+        return matplotlib.image.imread(png)[..., :3]
 
-    with viewer_mechanism.show(five_bar, q) as bare:
+    with scene_module.show(five_bar, q) as bare:
         sticks = render(bare, "sticks")
-    with viewer_mechanism.show(five_bar, q, atlas=ds, size=0.05) as full:
+    with scene_module.show(five_bar, q, atlas=ds, size=0.05) as full:
         field = render(full, "field")
     yellow = (sticks[..., 0] > 0.6) & (sticks[..., 1] > 0.5) & (sticks[..., 2] < 0.3)
     assert yellow.sum() > 20, "the motors (yellow balls) are not drawn"

@@ -3,8 +3,8 @@
 
 Every compliance of eq. 30, and every optional element the robot carries
 (:attr:`H4.elements <h4pin.H4>`), becomes virtual joints with springs inserted into a copy of the
-robot's own ``pin.Model`` (:func:`h4pin.elastic.engine.insert_joints`); the eight closures are
-re-created on the new model. :func:`h4pin.elastic.engine.compliance_matrix` then gives K from Pinocchio's
+robot's own ``pin.Model`` (:func:`h4pin.mechanism.engine.insert_joints`); the eight closures are
+re-created on the new model. :func:`h4pin.mechanism.engine.compliance_matrix` then gives K from Pinocchio's
 closure and frame Jacobians alone, with the four actuators locked: nothing of the paper's
 matrices or of :mod:`h4pin.stiffness` is used, only the spring data (read from
 :attr:`H4.geometry <h4pin.H4>` and :attr:`H4.elements <h4pin.H4>`).
@@ -40,6 +40,7 @@ and ``Gamma_ext = [F, T, t1, t2]`` as :func:`h4pin.compliance`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import threading
 import weakref
@@ -51,9 +52,9 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.description.elements import ELASTIC_SUFFIXES, Kind
-from h4pin.elastic import engine
-from h4pin.elastic.engine import FrameOutput, Insertion, JointOutput, Output, VirtualJoint
 from h4pin.kinematics import pinocchio as kin
+from h4pin.mechanism import engine
+from h4pin.mechanism.engine import FrameOutput, Insertion, JointOutput, Output, VirtualJoint
 
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
 
@@ -155,14 +156,16 @@ class ElasticH4:
             d = self._local.data = self.model.createData()
         return d
 
-    def compliance(self, pose: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
-        """Deprecated name of :meth:`compliance_matrix` (kept one release)."""
-        import warnings
+    @functools.cached_property
+    def mechanism(self) -> Any:
+        """The elastic H4 as a :class:`~h4pin.mechanism.Mechanism` (made on first use, then kept):
+        its tree with the inertias of :func:`h4pin.modes`, its 8 closures and its 4 actuators, so
+        that every generic route takes the H4: ``em.mechanism.compliance(q, em.stiffness, ["D"])``
+        (the actuators held as motors without a spring), ``.modes``, ``.to_mjcf``,
+        :func:`h4pin.mechanism.atlas.atlas`, the scene."""
+        from h4pin.mechanism import Mechanism
 
-        warnings.warn("ElasticH4.compliance is now ElasticH4.compliance_matrix (it returns an array; "
-                      "h4pin.compliance returns a Compliance); the old name goes in the next release",
-                      DeprecationWarning, stacklevel=2)
-        return self.compliance_matrix(pose, data)
+        return Mechanism.from_elastic(self)
 
     def mass_model(self, link_inertias: bool = True) -> pin.Model:
         """The model with the inertias of its natural modes (:func:`mass_model`)."""

@@ -7,7 +7,7 @@ URDF (Pinocchio's ``model.inertias``) and an optional rigid :class:`Payload` fix
 bar. At the assembled configuration q of a rigid pose:
 
 1. the admissible small motions are ``dq = N z``, N a basis of the null space of the closure
-   Jacobian stacked on the locked rows (as :func:`h4pin.elastic.engine.compliance_matrix`; the same
+   Jacobian stacked on the locked rows (as :func:`h4pin.mechanism.engine.compliance_matrix`; the same
    scaling, rank and singularity decisions);
 2. stiffness ``Kz = N^T Ke N`` (the springs, Ke diagonal); mass ``Mz = N^T M N``, with M the joint
    space inertia matrix of ``pin.crba`` plus the payload's ``J_D^T I_p J_D`` (I_p its 6x6 spatial
@@ -37,12 +37,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from h4pin.elastic import engine
-from h4pin.elastic.engine import MASSLESS_TOL, Modes, admissible_basis, undamped_modes  # noqa: F401  (re-exported)
 from h4pin.elastic.h4 import ElasticH4, elastic_model, mass_model  # noqa: F401  (mass_model: re-exported)
-from h4pin.elastic.payload import Payload
 from h4pin.errors import ParameterError
 from h4pin.kinematics.closed_form import as_pose
+from h4pin.mechanism import engine
+from h4pin.mechanism.engine import MASSLESS_TOL, Modes, admissible_basis, undamped_modes  # noqa: F401  (re-exported)
+from h4pin.mechanism.payload import Payload
 
 #: Length (m) that turns the rotations of dtp into lengths when the sign of a shape is chosen.
 _SIGN_LENGTH = 0.1
@@ -64,7 +64,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
             :attr:`ElasticH4.data <h4pin.elastic.h4.ElasticH4>`).
 
     Returns:
-        :class:`~h4pin.elastic.engine.Modes`: frequencies (m,) Hz ascending, shapes_tp (m, 8),
+        :class:`~h4pin.mechanism.engine.Modes`: frequencies (m,) Hz ascending, shapes_tp (m, 8),
         shapes_q (m, nv).
 
     Raises:
@@ -75,7 +75,7 @@ def modes(robot: Any, pose: np.ndarray, payload: Payload | None = None, *, link_
     """
     em = robot if isinstance(robot, ElasticH4) else elastic_model(robot)
     if payload is not None and not isinstance(payload, Payload):
-        raise ParameterError(f"payload must be an h4pin.elastic.Payload or None, got {type(payload).__name__}")
+        raise ParameterError(f"payload must be an h4pin.mechanism.Payload or None, got {type(payload).__name__}")
     x = as_pose(pose).copy()
     mm = mass_model(em, bool(link_inertias))
     d = em.data if data is None else data

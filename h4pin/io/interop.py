@@ -333,7 +333,7 @@ def closed_loop_from_sidecar(urdf_path: str | Path, sidecar_path: str | Path | N
                              use_toolbox: bool | None = None) -> ClosedLoop:
     """A URDF and its Extended-URDF sidecar as the toolbox's loader builds them (``completeRobotLoader``
     of example-parallel-robots, not on PyPI), through h4pin's one sidecar reader
-    (:mod:`h4pin.elastic.sidecar`): Pinocchio's URDF parser (fixed base), the ``joint_name`` /
+    (:mod:`h4pin.mechanism.sidecar`): Pinocchio's URDF parser (fixed base), the ``joint_name`` /
     ``joint_type`` conversions, each sidecar pair of frames as a ``RigidConstraintModel``
     (``CONTACT_3D`` for ``3D``, ``CONTACT_6D`` for ``6D``) between the frames' parent joints at the
     frames' placements in the LOCAL frame, and the actuation model of ``name_mot``.
@@ -345,9 +345,9 @@ def closed_loop_from_sidecar(urdf_path: str | Path, sidecar_path: str | Path | N
 
     Raises:
         MissingExtraError: PyYAML is not installed (the ``interop`` extra).
-        MalformedURDFError: as :func:`h4pin.elastic.sidecar.read` and :func:`~h4pin.elastic.sidecar.build`.
+        MalformedURDFError: as :func:`h4pin.mechanism.sidecar.read` and :func:`~h4pin.mechanism.sidecar.build`.
     """
-    from h4pin.elastic import sidecar
+    from h4pin.mechanism import sidecar
 
     urdf_path = Path(urdf_path)
     side = sidecar.read(urdf_path.with_suffix(".yaml") if sidecar_path is None else sidecar_path)

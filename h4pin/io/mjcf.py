@@ -63,7 +63,10 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import limits
-from h4pin.elastic.mjcf_writer import (
+from h4pin.errors import ParameterError
+from h4pin.files import write_text
+from h4pin.mechanism import mjcf_writer as mw
+from h4pin.mechanism.mjcf_writer import (
     ARMATURE_STEPS,
     CHAIN_MASS,
     DAMPING,
@@ -75,15 +78,6 @@ from h4pin.elastic.mjcf_writer import (
     require_mujoco,
     set_spring,
 )
-from h4pin.elastic.mjcf_writer import angle as _angle
-from h4pin.elastic.mjcf_writer import floats as _floats
-from h4pin.elastic.mjcf_writer import full_precision as _full_precision
-from h4pin.elastic.mjcf_writer import is_free as _is_free
-from h4pin.elastic.mjcf_writer import is_revolute as _is_revolute
-from h4pin.elastic.mjcf_writer import motion as _motion
-from h4pin.elastic.mjcf_writer import quaternion as _quat
-from h4pin.errors import ParameterError
-from h4pin.files import write_text
 
 #: MuJoCo time step (s).
 TIMESTEP = 1e-4
@@ -183,7 +177,7 @@ def _links(model: pin.Model) -> tuple[list[int], dict[int, int], dict[int, int]]
 def _geom_shape(mujoco: Any, geom: Any) -> tuple[Any, list[float]] | None:
     kind = type(geom).__name__
     if kind == "Box":
-        return mujoco.mjtGeom.mjGEOM_BOX, _floats(geom.halfSide)
+        return mujoco.mjtGeom.mjGEOM_BOX, mw.floats(geom.halfSide)
     if kind == "Cylinder":
         return mujoco.mjtGeom.mjGEOM_CYLINDER, [float(geom.radius), float(geom.halfLength), 0.0]
     if kind == "Capsule":
@@ -198,7 +192,7 @@ def _look_at(eye: np.ndarray, target: np.ndarray) -> list[float]:
     back = (eye - target) / np.linalg.norm(eye - target)
     right = np.cross([0.0, 0.0, 1.0], back)
     right /= np.linalg.norm(right)
-    return _quat(np.column_stack([right, np.cross(back, right), back]))
+    return mw.quaternion(np.column_stack([right, np.cross(back, right), back]))
 
 
 def _closed(h4: Any, q: np.ndarray | None) -> np.ndarray:
@@ -297,7 +291,7 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
     payload = float(limits.check_range("payload", payload, "payload"))
     q = _closed(h4, q)
     plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep), bool(servo))
-    s = _build(h4, name, q, plan, (_floats(solref), _floats(solimp), float(timestep)))
+    s = _build(h4, name, q, plan, (mw.floats(solref), mw.floats(solimp), float(timestep)))
     if payload > 0:
         site = s.site("D")
         body = site.parent.add_body()
@@ -366,8 +360,8 @@ def _plan(h4: Any, em: Any, q: np.ndarray, damping: float, timestep: float, serv
         joints = []
         for k in names:
             jm, place = m.joints[k], ezero.oMi[k]
-            axis = place.rotation @ _motion(jm)[3:] if _is_revolute(jm) else place.rotation @ _motion(jm)[:3]
-            joints.append((m.names[k], _is_revolute(jm), world.actInv(place.translation), world.rotation.T @ axis))
+            axis = place.rotation @ mw.motion(jm)[3:] if mw.is_revolute(jm) else place.rotation @ mw.motion(jm)[:3]
+            joints.append((m.names[k], mw.is_revolute(jm), world.actInv(place.translation), world.rotation.T @ axis))
         up = rigid.names[rigid.frames[link].parentJoint] if link in own_joint else None
         if servo and up in em.locked and joints[0][0] == f"{up}_elastic":
             servos[up] = em.stiffness[joints[0][0]]  # the servo's position gain: the spring itself
@@ -464,7 +458,7 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
     compiler = getattr(s, "compiler", s)  # MuJoCo >= 3.2.5 groups these under spec.compiler
     compiler.degree = False
     s.option.timestep = timestep
-    s.option.gravity = _floats(model.gravity.linear)
+    s.option.gravity = mw.floats(model.gravity.linear)
     s.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 
     geoms: dict[int, list[Any]] = {}
@@ -489,7 +483,7 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
                 if hasattr(body, "explicitinertial"):
                     body.explicitinertial = True
                 j = body.add_joint()
-                j.name, j.pos, j.axis = jname, _floats(pos), _floats(axis)
+                j.name, j.pos, j.axis = jname, mw.floats(pos), mw.floats(axis)
                 j.type = mujoco.mjtJoint.mjJNT_HINGE if revolute else mujoco.mjtJoint.mjJNT_SLIDE
                 _spring(mujoco, j, plan)
             chain_bodies[end] = body
@@ -511,15 +505,15 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
                 if chain.in_link and chain.link == f:
                     jname, _, pos, axis = chain.joints[0]
                     j = body.add_joint()
-                    j.name, j.type, j.pos, j.axis = jname, mujoco.mjtJoint.mjJNT_HINGE, _floats(pos), _floats(axis)
+                    j.name, j.type, j.pos, j.axis = jname, mujoco.mjtJoint.mjJNT_HINGE, mw.floats(pos), mw.floats(axis)
                     _spring(mujoco, j, plan)
         if joint_id is not None:
             _add_joint(mujoco, body, model, frame, joint_id)
-        body.pos, body.quat = _floats(place.translation), _quat(place.rotation)
+        body.pos, body.quat = mw.floats(place.translation), mw.quaternion(place.rotation)
         mass, com, tensor = inertials.get(frame.name, (0.0, np.zeros(3), np.zeros((3, 3))))
         if mass > 0:
-            body.mass, body.ipos = mass, _floats(com)
-            body.fullinertia = _floats([tensor[0, 0], tensor[1, 1], tensor[2, 2],
+            body.mass, body.ipos = mass, mw.floats(com)
+            body.fullinertia = mw.floats([tensor[0, 0], tensor[1, 1], tensor[2, 2],
                                         tensor[0, 1], tensor[0, 2], tensor[1, 2]])
             if hasattr(body, "explicitinertial"):
                 body.explicitinertial = True
@@ -532,7 +526,7 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
                 site = chain_body(end).add_site()
             else:
                 site = body.add_site()
-            site.name, site.pos, site.size, site.group = site_name, _floats(xyz), [0.003, 0.0, 0.0], 3
+            site.name, site.pos, site.size, site.group = site_name, mw.floats(xyz), [0.003, 0.0, 0.0], 3
         _add_geoms(mujoco, body, frame, geoms.get(f, []))
     if plan is not None:
         for end in plan.chains:
@@ -547,10 +541,10 @@ def _build(h4: Any, name: str | None, q: np.ndarray, plan: _Plan | None,
     _scene(model, s, mujoco, data)
     key = s.add_key()
     key.name = KEYFRAME
-    key.qpos = _floats(qpos(h4, q)) if plan is None else _floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
+    key.qpos = mw.floats(qpos(h4, q)) if plan is None else mw.floats(_named_qpos(s.compile(), plan.em.model, plan.q_em))
     if plan is not None and plan.servo:
         angles = [q[model.joints[model.getJointId(n)].idx_q] for n in h4.actuated_joint_names]
-        key.ctrl = _floats(angles + [0.0] * len(angles))
+        key.ctrl = mw.floats(angles + [0.0] * len(angles))
     return s
 
 
@@ -573,23 +567,23 @@ def _add_joint(mujoco: Any, body: Any, model: pin.Model, frame: Any, joint_id: i
     """The MuJoCo joints of Pinocchio joint ``joint_id`` on ``body`` (its child link's frame):
     a hinge (with its limits) or a floating joint's three slides and ball."""
     joint, jname = model.joints[joint_id], model.names[joint_id]
-    if _is_free(joint):
+    if mw.is_free(joint):
         if not frame.placement.isIdentity(1e-12):
             raise ParameterError(f"h4: link '{frame.name}' must sit at the origin of its floating joint")
         for k, suffix in enumerate(SLIDES):
             j = body.add_joint()
             j.name, j.type = jname + suffix, mujoco.mjtJoint.mjJNT_SLIDE
-            j.axis = _floats(np.eye(3)[k])
+            j.axis = mw.floats(np.eye(3)[k])
             j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
         j = body.add_joint()
         j.name, j.type = jname, mujoco.mjtJoint.mjJNT_BALL
         j.limited = mujoco.mjtLimited.mjLIMITED_FALSE
-    elif _is_revolute(joint):
+    elif mw.is_revolute(joint):
         in_link = frame.placement.inverse()  # the joint frame seen from the link
         j = body.add_joint()
         j.name, j.type = jname, mujoco.mjtJoint.mjJNT_HINGE
-        j.pos = _floats(in_link.translation)
-        j.axis = _floats(in_link.rotation @ _motion(joint)[3:])
+        j.pos = mw.floats(in_link.translation)
+        j.axis = mw.floats(in_link.rotation @ mw.motion(joint)[3:])
         lo, hi = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
         if joint.nq == 1 and np.isfinite(lo) and np.isfinite(hi):
             j.limited, j.range = mujoco.mjtLimited.mjLIMITED_TRUE, [float(lo), float(hi)]
@@ -608,8 +602,8 @@ def _add_geoms(mujoco: Any, body: Any, frame: Any, objs: list[Any]) -> None:
         local = frame.placement.actInv(obj.placement)
         g = body.add_geom()
         g.name, (g.type, g.size) = obj.name, shape
-        g.pos, g.quat = _floats(local.translation), _quat(local.rotation)
-        g.rgba = _floats(obj.meshColor)
+        g.pos, g.quat = mw.floats(local.translation), mw.quaternion(local.rotation)
+        g.rgba = mw.floats(obj.meshColor)
         g.density, g.contype, g.conaffinity, g.group = 0.0, 0, 0, 1
 
 
@@ -653,7 +647,7 @@ def _named_qpos(m: Any, model: pin.Model, q: np.ndarray) -> np.ndarray:
         elif own != name:
             out[adr] = v[SLIDES.index(name[-2:])]
         else:
-            out[adr] = _angle(j, q) if j.nq == 2 else v[0]
+            out[adr] = mw.angle(j, q) if j.nq == 2 else v[0]
     return out
 
 
@@ -734,7 +728,7 @@ def to_mjcf(h4: Any, name: str | None = None, q: np.ndarray | None = None, *, el
         raise ParameterError("servo: only the elastic robot has servos (elastic=True)")
     s = elastic_spec(h4, name, q, servo=servo) if elastic else spec(h4, name, q)
     s.compile()
-    with _full_precision(mujoco):
+    with mw.full_precision(mujoco):
         text = s.to_xml()
     head, sep, rest = text.partition("\n")
     held = ("the actuators driven by position servos (<joint>_servo: ctrl the angle in rad, gain the "
@@ -768,12 +762,12 @@ def qpos(h4: Any, q: np.ndarray) -> np.ndarray:
     for jid in range(1, model.njoints):
         j = model.joints[jid]
         v = q[j.idx_q:j.idx_q + j.nq]
-        if _is_free(j):
-            out += _floats(np.r_[v[:3], v[6], v[3:6]])
+        if mw.is_free(j):
+            out += mw.floats(np.r_[v[:3], v[6], v[3:6]])
         elif j.nq == 2 and j.nv == 1:
-            out.append(_angle(j, q))
+            out.append(mw.angle(j, q))
         else:
-            out += _floats(v)
+            out += mw.floats(v)
     return np.asarray(out, float)
 
 

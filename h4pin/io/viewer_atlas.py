@@ -16,7 +16,7 @@ atlas with ``first_frequency`` or one a later release extends is drawn as it is 
     from h4pin.io import viewer_atlas
     h4 = load()
     ds = atlas.atlas(h4, x, y, z)
-    with viewer.Scene(h4) as scene:
+    with viewer.scene(h4) as scene:
         viewer_atlas.show_atlas(scene, ds, "compliance_max")
         scene.write_html("atlas.html")
 """
@@ -34,7 +34,7 @@ import xarray as xr  # noqa: E402
 
 from h4pin import verdicts  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
-from h4pin.io.viewer import Scene  # noqa: E402
+from h4pin.mechanism.scene import Scene  # noqa: E402
 
 _GRID = {"theta", "z", "y", "x"}
 
@@ -76,7 +76,7 @@ def atlas_points(ds: xr.Dataset, quantity: str = "compliance_max", theta: float 
 
 def show_atlas(scene: Scene, ds: xr.Dataset, quantity: str = "compliance_max", theta: float | None = None,
                size: float = 0.006, path: str = "atlas") -> tuple[float, float]:
-    """Draw :func:`atlas_points` into ``scene`` (a :class:`h4pin.io.viewer.Scene`) as a
+    """Draw :func:`atlas_points` into ``scene`` (a :class:`h4pin.mechanism.scene.Scene`) as a
     ``meshcat.geometry.PointCloud`` of point size ``size`` (m); add a legend line.
 
     Returns:

@@ -16,8 +16,10 @@ kernel (:mod:`h4pin.stiffness.kernel`) gives K of eq. 30, J of eq. 8 and a verdi
   robot (:mod:`h4pin.stiffness.frequencies`, about 30 us a pose on one core).
 
 The result is an :class:`xarray.Dataset` with dims ``(theta, z, y, x)`` and units in the
-attributes; :func:`save` writes it to NetCDF (``.nc``) or zarr (``.zarr``) atomically, and
-:func:`plot` draws one map per quantity with the workspace boundary (the contour of status 0).
+attributes; :func:`h4pin.mechanism.store.save` writes it to NetCDF (``.nc``) or zarr (``.zarr``)
+atomically, the store every atlas shares (a streamed ``.zarr`` atlas resumes after a kill), and
+:func:`h4pin.plots.atlas_maps` draws one map per quantity with the workspace boundary (the
+contour of status 0).
 See ``docs/atlas.md``.
 """
 
@@ -25,9 +27,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -39,11 +38,11 @@ from h4pin.extras import require
 require("xarray", extra="studies", what="the atlas (h4pin.studies.atlas)")
 import xarray as xr  # noqa: E402
 
-from h4pin import files, limits, verdicts  # noqa: E402
+from h4pin import limits, verdicts  # noqa: E402
 from h4pin.description.geometry import geometry_from_params  # noqa: E402
 from h4pin.description.params import H4Params  # noqa: E402
 from h4pin.errors import ParameterError  # noqa: E402
-from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
+from h4pin.mechanism import store  # noqa: E402
 from h4pin.stiffness import frequencies, kernel, pipeline  # noqa: E402
 from h4pin.studies import _derived  # noqa: E402
 
@@ -57,15 +56,6 @@ QUANTITIES = dict(
 )
 #: The quantity an atlas adds with ``frequency=True``.
 FREQUENCY = dict(first_frequency=("Hz", "lowest natural frequency (elastic robot, URDF inertias, actuators locked)"))
-#: How :func:`plot` shows each quantity: (factor, unit label, log colour scale).
-DISPLAY = {
-    "compliance_max": (1e6, "um/N", True),
-    "first_frequency": (1.0, "Hz", False),
-    "stiffness_z": (1e-6, "N/um", True),
-    "isotropy": (1.0, "", False),
-    "cond_J": (1.0, "", True),
-    "cond_M1": (1.0, "", True),
-}
 
 
 def _axis(name: str, values: Any) -> np.ndarray:
@@ -107,20 +97,6 @@ def _robot_chunks(h4: Any, chunks: Any, model: str) -> Any:
             J[ok] = from_points(h4.geometry, geometry.points(h4.geometry, state)).J
         yield start, kernel.KernelResult(res.matrix, res.q, res.condition, res.status.astype(np.int8), None, J)
         start += len(x)
-
-
-def block_layout(shape: tuple[int, int, int, int], chunk: int) -> tuple[tuple[int, int, int, int], tuple[int, ...]]:
-    """The blocks of an atlas of ``shape`` (theta, z, y, x): each block is ``(1, 1, ry, cx)``
-    poses -- whole rows of x when a row fits in ``chunk`` poses, else pieces of ``chunk`` poses
-    of one row -- and is both one kernel call and one zarr chunk. Returns the block shape and
-    the number of blocks along each dimension."""
-    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
-        raise ParameterError(f"chunk must be an integer >= 1, got {chunk!r}")
-    ny, nx = shape[2], shape[3]
-    cx = min(nx, int(chunk))
-    ry = max(1, min(ny, int(chunk) // cx))
-    block = (1, 1, ry, cx)
-    return block, tuple(-(-s // b) for s, b in zip(shape, block, strict=True))
 
 
 def _regions(axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...], todo: Any) -> Any:
@@ -230,10 +206,10 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
             as soon as it is computed, memory stays at one block whatever the grid, a killed run
             resumes from the blocks it finished (:func:`stream`), and the returned Dataset is
             the store opened lazily (dask arrays). A ``.nc`` path is computed in memory and
-            saved (:func:`save`).
+            saved (:func:`h4pin.mechanism.store.save`).
         frequency: Also the first natural frequency (:data:`FREQUENCY`; a robot whose
             parallelograms are exact, or an H4Params: :mod:`h4pin.stiffness.frequencies`).
-        overwrite: Replace a zarr store at ``out`` that h4pin did not write (:func:`check_out`).
+        overwrite: Replace a zarr store at ``out`` that h4pin did not write (:func:`h4pin.mechanism.store.check_out`).
 
     Returns:
         An :class:`xarray.Dataset` with the variables of :data:`QUANTITIES` (and
@@ -243,13 +219,13 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
         return stream(source, x, y, z, theta, model, out=out, chunk=chunk, progress=progress, frequency=frequency,
                       overwrite=overwrite)
     if out is not None:
-        check_out(out, "out", overwrite)
+        store.check_out(out, "out", overwrite)
     limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
-    block, grid = block_layout(shape, chunk)
+    block, grid = store.block_layout(shape, chunk)
     check_memory(shape, frequency=frequency, chunk=chunk)
     data = {q: np.full(shape, np.nan) for q in _quantities(frequency)}
     data["status"] = np.empty(shape, dtype=np.int8)
@@ -263,7 +239,7 @@ def atlas(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "c
         _compute(kern, _regions(axes, block, grid, range(int(np.prod(grid)))), model, chunk, write, bar, masses)
     ds = _dataset(axes, data, model, name)
     if out is not None:
-        save(ds, out, overwrite)
+        store.save(ds, out, overwrite)
     return ds
 
 
@@ -292,19 +268,6 @@ def _dataset(axes: dict[str, np.ndarray], data: dict[str, Any], model: str, name
     })
 
 
-#: Name of the store an atlas streams into, beside its target: ``.NAME.h4pin-partial``. It is
-#: renamed to the target once every block is in; a killed run leaves it for the next run.
-PARTIAL_TAG = "h4pin-partial"
-#: The array of the partial store that flags finished blocks (removed before the rename).
-DONE = "h4pin_done"
-
-
-def partial_path(path: str | Path) -> Path:
-    """Where :func:`stream` writes the atlas ``path`` until it is whole."""
-    path = Path(path)
-    return path.parent / f".{path.name}.{PARTIAL_TAG}"
-
-
 def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tuple[int, ...],
                  masses: Any = None) -> str:
     """What fixes the numbers of a streamed atlas: the robot (packed kernel geometry and element
@@ -325,38 +288,6 @@ def _fingerprint(kern: Any, axes: dict[str, np.ndarray], model: str, block: tupl
     return h.hexdigest()
 
 
-def open_partial(path: Path, template: xr.Dataset, key: str, n_blocks: int) -> Any:
-    """The partial store of ``path`` (the caller holds :func:`h4pin.files.store_lock`): resumed if
-    it holds this atlas (same :func:`_fingerprint`), else made anew -- in a temporary folder, moved
-    into place whole."""
-    import zarr
-
-    partial = partial_path(path)
-    for _ in range(3):
-        if not partial.exists():
-            tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
-            try:
-                store = tmp / "store"
-                tagged = template.assign_attrs({files.STORE_ATTR: files.store_tag("atlas")})
-                tagged.to_zarr(store, mode="w", consolidated=False, compute=False)
-                group = zarr.open_group(str(store), mode="a")
-                create = getattr(group, "create_array", None) or group.create_dataset  # zarr 3, zarr 2
-                done = create(DONE, shape=(n_blocks,), chunks=(n_blocks,), dtype="bool", fill_value=False)
-                done.attrs["key"] = key
-                os.replace(store, partial)  # atomic: the partial store appears whole
-            finally:
-                shutil.rmtree(tmp, ignore_errors=True)
-        try:
-            group = zarr.open_group(str(partial), mode="a")
-            same = group[DONE].attrs.get("key") == key
-        except (KeyError, OSError, ValueError):  # a damaged partial store (zarr's errors are ValueErrors)
-            same = False
-        if same:
-            return group
-        shutil.rmtree(partial, ignore_errors=True)  # another atlas's (or a damaged) partial store
-    raise ParameterError(f"out: cannot make the partial store {partial}")
-
-
 def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "consistent", *,
            out: str | Path, chunk: int = kernel.CHUNK, progress: bool = True, frequency: bool = False,
            overwrite: bool = False) -> xr.Dataset:
@@ -364,49 +295,43 @@ def stream(source: Any, x: Any, y: Any, z: Any, theta: Any = 0.0, model: str = "
     the number of poses (one block of at most ``chunk`` poses, about 700 bytes a pose).
 
     The store's arrays are made first, with their final (theta, z, y, x) shape, in a partial
-    store beside ``out`` (``.NAME.h4pin-partial``, :func:`partial_path`); each block (whole rows
+    store beside ``out`` (``.NAME.h4pin-partial``, :func:`h4pin.mechanism.store.partial`); each block (whole rows
     of x, one zarr chunk) is written there as it is computed, then flagged done. When every
     block is in, the flags are removed and the partial store is renamed to ``out`` (replacing an
     atlas there). A killed run leaves the partial store: the next run with the same robot,
     grid, model and ``chunk`` resumes from the blocks done; any other run restarts it. ``out``
     itself is never half-written. One run at a time per ``out`` (:func:`h4pin.files.store_lock`:
     a second run is refused). A zarr store at ``out`` that h4pin did not write is replaced only
-    with ``overwrite`` (:func:`check_out`).
+    with ``overwrite`` (:func:`h4pin.mechanism.store.check_out`).
 
     Returns:
         The store at ``out``, opened lazily (:func:`xarray.open_zarr`).
     """
-    require("zarr", extra="studies", what="writing .zarr atlases")
     import dask.array as da
 
-    path = check_out(out, "out", overwrite)
-    if path.suffix != ".zarr":
-        raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
+    path = store.check_stream(out, "out", overwrite)
     limits.check_springs(source, "source")
     kern, name = _geometry(source)
     masses = _masses(source) if frequency else None
     kernel.model_code(model)
     axes = _axes(x, y, z, theta)
     shape = tuple(len(v) for v in axes.values())
-    block, grid = block_layout(shape, chunk)
+    block, grid = store.block_layout(shape, chunk)
     check_memory(shape, frequency=frequency, streamed=True, chunk=chunk)
-    n_blocks = int(np.prod(grid))
     lazy = {q: da.full(shape, np.nan, chunks=block) for q in _quantities(frequency)}
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
     template = _dataset(axes, lazy, model, name)
-    with files.store_lock(path, "atlas"):
-        check_out(path, "out", overwrite)  # again, under the lock: another run may have written it meanwhile
-        clean_stale(path)
-        group = open_partial(path, template, _fingerprint(kern, axes, model, block, masses), n_blocks)
+    with store.partial(path, template, _fingerprint(kern, axes, model, block, masses), int(np.prod(grid)),
+                       overwrite=overwrite) as group:
         _fill(group, path, axes, block, grid, kern, model, chunk, progress, masses, frequency)
-    return opened(path)
+    return store.opened(path)
 
 
 def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...],
           kern: Any, model: str, chunk: int, progress: bool, masses: Any, frequency: bool) -> None:
     """Compute the blocks of the partial store ``group`` not flagged done, then move it to ``path``."""
     shape = tuple(len(v) for v in axes.values())
-    done = group[DONE]
+    done = group[store.DONE]
     flags = done[:]
     todo = np.flatnonzero(~flags)
     arrays = {q: group[q] for q in (*_quantities(frequency), "status")}
@@ -422,23 +347,7 @@ def _fill(group: Any, path: Path, axes: dict[str, np.ndarray], block: tuple[int,
     with tqdm(total=int(np.prod(shape)), desc="atlas", unit="pose", disable=not progress,
               initial=int(np.prod(shape)) - _poses_in(todo, axes, block, grid)) as bar:
         _compute(kern, _regions(axes, block, grid, todo), model, chunk, write, bar, masses)
-    partial = partial_path(path)
-    shutil.rmtree(partial / DONE)
-    make_readable(partial)
-    tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
-    try:
-        if path.exists():
-            os.replace(path, tmp / "old")
-        os.replace(partial, path)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-
-
-def opened(path: Path) -> xr.Dataset:
-    """The atlas store at ``path`` opened lazily, without the store's own tag (:data:`h4pin.files.STORE_ATTR`)."""
-    ds = xr.open_zarr(path, consolidated=False)
-    ds.attrs.pop(files.STORE_ATTR, None)
-    return ds
+    store.finish(path)
 
 
 def _poses_in(todo: np.ndarray, axes: dict[str, np.ndarray], block: tuple[int, ...], grid: tuple[int, ...]) -> int:
@@ -483,7 +392,7 @@ def check_memory(n: int | tuple[int, ...], *, frequency: bool = False, streamed:
     if streamed:
         blocks = -(-n // max(1, int(chunk)))
         if shape is not None and len(shape) == 4 and min(shape) > 0:
-            blocks = math.prod(block_layout(tuple(int(v) for v in shape), chunk)[1])
+            blocks = math.prod(store.block_layout(tuple(int(v) for v in shape), chunk)[1])
         need = blocks * BYTES_PER_BLOCK + in_flight
     else:
         blocks = 0
@@ -491,123 +400,3 @@ def check_memory(n: int | tuple[int, ...], *, frequency: bool = False, streamed:
     seconds = n / (FREQUENCY_POSES_PER_S if frequency else POSES_PER_S) + blocks * SECONDS_PER_BLOCK
     limits.check_size(f"atlas: a grid of {n:,} poses", need, seconds,
                       "use fewer points or several slices" + ("" if streamed else ", or a .zarr output (streamed)"))
-
-
-def check_out(path: str | Path, what: str = "path", overwrite: bool = False) -> Path:
-    """Refuse, before any work, an atlas output that :func:`save` could not write: not ``.nc`` or
-    ``.zarr``, an unwritable folder, a folder where the ``.nc`` file should go, or an existing
-    ``.zarr`` folder that is not an h4pin atlas store (:func:`h4pin.files.check_store_folder`:
-    another zarr store is replaced only with ``overwrite``, any other folder never)."""
-    path = check_output(path, what, folder=Path(path).suffix == ".zarr", suffixes=(".nc", ".zarr"))
-    if path.suffix == ".zarr":
-        files.check_store_folder(path, "atlas", what, overwrite)
-    return path
-
-
-def save(ds: xr.Dataset, path: str | Path, overwrite: bool = False) -> Path:
-    """Write an atlas atomically: ``.nc`` (NetCDF4 through h5netcdf) or ``.zarr`` (a folder,
-    tagged as h4pin's: :data:`h4pin.files.STORE_ATTR`, written by one process at a time).
-    Files are mode 0644; nothing is left half-written if the write fails, and the temporary
-    folder a killed save left is removed the next time (:func:`h4pin.files.clean_stale`).
-
-    Raises:
-        ParameterError: as :func:`check_out`; another process writes the ``.zarr`` store now.
-    """
-    path = check_out(path, "path", overwrite)
-    require("h5netcdf" if path.suffix == ".nc" else "zarr", extra="studies", what=f"writing {path.suffix} atlases")
-    if path.suffix == ".zarr":
-        with files.store_lock(path, "atlas"):
-            check_out(path, "path", overwrite)  # again, under the lock
-            return _save(ds, path)
-    return _save(ds, path)
-
-
-def _save(ds: xr.Dataset, path: Path) -> Path:
-    clean_stale(path)
-    tmp = Path(tempfile.mkdtemp(prefix=tmp_prefix(path), dir=path.parent))
-    try:
-        if path.suffix == ".nc":
-            target = tmp / path.name
-            ds.to_netcdf(target, engine="h5netcdf")
-            os.chmod(target, 0o644)
-            os.replace(target, path)
-        else:
-            target = tmp / path.name
-            ds.assign_attrs({files.STORE_ATTR: files.store_tag("atlas")}).to_zarr(target, mode="w", consolidated=False)
-            make_readable(target)
-            if path.exists():
-                os.replace(path, tmp / "old")
-            os.replace(target, path)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return path
-
-
-def open_atlas(path: str | Path) -> xr.Dataset:
-    """Read an atlas written by :func:`save` into memory."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no atlas at {path}")
-    if path.suffix == ".zarr":
-        with opened(path) as ds:
-            return ds.load()
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        return ds.load()
-
-
-def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels: int = 4) -> list[Path]:
-    """One PNG per quantity (and one of the verdict) in ``folder``: ``{prefix}{quantity}.png``.
-
-    Each figure has one panel per (theta, z) slice (at most ``max_panels``, evenly chosen), the
-    quantity as a colour map in display units (1st to 99th percentile of the panels shown: compliance grows without
-    bound near singularities), and the workspace boundary (status 0) in black.
-    """
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise ParameterError(f"folder {str(folder)!r} does not exist")
-    slices = [(t, z) for t in range(ds.sizes["theta"]) for z in range(ds.sizes["z"])]
-    if len(slices) > max_panels:
-        slices = [slices[i] for i in np.linspace(0, len(slices) - 1, max_panels).round().astype(int)]
-    x, y = ds.x.values * 1e3, ds.y.values * 1e3
-    # Only the panels' slices are read (a streamed atlas is a lazily opened store).
-    status = {s: ds.status.isel(theta=s[0], z=s[1]).values for s in slices}
-    written = []
-    for q in (*(q for q in (*QUANTITIES, *FREQUENCY) if q in ds), "status"):
-        fig = Figure(figsize=(4.2 * len(slices) + 1.0, 4.0), layout="constrained")
-        axs = fig.subplots(1, len(slices), squeeze=False)[0]
-        if q == "status":
-            factor, unit, log = 1.0, "", False
-            values = {s: v.astype(float) for s, v in status.items()}
-            vmin, vmax = -0.5, 4.5
-        else:
-            factor, unit, log = DISPLAY[q]
-            values = {s: ds[q].isel(theta=s[0], z=s[1]).values * factor for s in slices}
-            finite = np.concatenate([v[np.isfinite(v)] for v in values.values()])
-            # Near a singularity the compliance grows without bound: colour the 1st-99th percentiles.
-            vmin, vmax = (float(v) for v in np.percentile(finite, [1, 99])) if finite.size else (0.0, 1.0)
-        mesh = None
-        for ax, (t, zi) in zip(axs, slices, strict=True):
-            v = values[t, zi]
-            norm = LogNorm(vmin, vmax) if log and vmin > 0 else None
-            mesh = ax.pcolormesh(x, y, v, shading="nearest", cmap="viridis", norm=norm,
-                                 **({} if norm else {"vmin": vmin, "vmax": vmax}))
-            reach = (status[t, zi] == verdicts.OK).astype(float)
-            if 0 < reach.sum() < reach.size and len(x) > 1 and len(y) > 1:
-                ax.contour(x, y, reach, levels=[0.5], colors="k", linewidths=1.2)
-            ax.set_title(f"z = {ds.z.values[zi] * 1e3:.0f} mm, theta = {ds.theta.values[t]:.2f} rad", fontsize=9)
-            ax.set_xlabel("x [mm]")
-            ax.set_aspect("equal")
-        axs[0].set_ylabel("y [mm]")
-        label = f"{q} [{unit}]" if unit else q
-        if q == "status":
-            label = "status: " + ", ".join(f"{c} {s}" for c, s in enumerate(verdicts.STATUS_NAMES))
-        cb = fig.colorbar(mesh, ax=list(axs), shrink=0.9, extend="neither" if q == "status" else "both")
-        cb.set_label(label, fontsize=8)
-        fig.suptitle(f"H4 atlas ({ds.attrs.get('model', '')} model): {_quantities(True).get(q, ('', 'verdict'))[1]}",
-                     fontsize=9)
-        target = folder / f"{prefix}{q}.png"
-        written.append(save_figure(fig, target, dpi=110))
-    return written

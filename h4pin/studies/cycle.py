@@ -44,7 +44,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -52,7 +51,6 @@ import pinocchio as pin
 
 from h4pin import limits
 from h4pin.errors import ParameterError, PoseError
-from h4pin.files import save_figure
 from h4pin.inputs import short
 from h4pin.kinematics import closed_form as cf
 from h4pin.robot import H4
@@ -639,75 +637,6 @@ def report(results: CycleResult | Sequence[CycleResult]) -> str:
     return "\n".join(lines)
 
 
-def write_figure(result: CycleResult, path: str | Path, others: Sequence[CycleResult] = ()) -> Path:
-    """Trajectory, load, deflection and actuator torques along the cycle, written atomically as
-    PNG. ``others``: more results (another payload) whose |dD| is drawn beside."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise ParameterError(f"cannot write {path}: folder {path.parent} does not exist")
-    r, c = result, result.cycle
-    t = r.t * 1e3
-    fig, axes = plt.subplots(2, 3, figsize=(16, 8.5))
-    ax = axes[0, 0]
-    along = (r.pose[:, :3] - c.start) @ c.direction
-    ax.plot(along * 1e3, (r.pose[:, 2] - c.start[2]) * 1e3, "k.-", ms=2, lw=0.8)
-    ax.set_xlabel("along the stroke (mm)")
-    ax.set_ylabel("z - z_start (mm)")
-    ax.set_ylim(-0.2 * c.height * 1e3, 1.4 * c.height * 1e3)
-    ax.set_title(f"path of D: {c.height * 1e3:.0f} / {c.length * 1e3:.0f} / {c.height * 1e3:.0f} mm, "
-                 f"{c.period:g} s cycle\n(dots every {c.period / (len(r.t) - 1) * 1e3:.2f} ms)")
-    ax = axes[0, 1]
-    for k, name in enumerate("xyz"):
-        ax.plot(t, r.acceleration[:, k], label=f"{name}''")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("acceleration of D (m/s^2)")
-    ax.set_title("time law: 5th-order per motion, corners overlapped")
-    ax.legend(loc="best", fontsize=8)
-    ax = axes[0, 2]
-    for k, name in enumerate("xyz"):
-        ax.plot(t, r.load[:, k], label=f"F{name} (N)")
-    ax.plot(t, np.linalg.norm(r.load[:, :3], axis=1), "k--", lw=0.8, label="|F| (N)")
-    for k, name in enumerate("xyz"):
-        if np.abs(r.load[:, 3 + k]).max() > 1e-9:
-            ax.plot(t, r.load[:, 3 + k] * 10, ":", label=f"T{name} x 10 (N.m)")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("load on the legs at D")
-    ax.set_title(f"Gamma_ext = weight + d'Alembert load of\nthe plate and a {r.payload:g} kg payload")
-    ax.legend(loc="best", fontsize=8)
-    ax = axes[1, 0]
-    for k, name in enumerate("xyz"):
-        ax.plot(t, r.deflection[:, k] * 1e6, label=f"d{name}")
-    ax.plot(t, np.linalg.norm(r.deflection[:, :3], axis=1) * 1e6, "k-", lw=1.2, label=f"|dD|, {r.payload:g} kg")
-    for o in others:
-        ax.plot(o.t * 1e3, np.linalg.norm(o.deflection[:, :3], axis=1) * 1e6, "k:", lw=1.2,
-                label=f"|dD|, {o.payload:g} kg")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("deflection of D (um)")
-    ax.set_title(f"quasi-static deflection dD = K Gamma_ext (model '{r.model}')")
-    ax.legend(loc="best", fontsize=8)
-    ax = axes[1, 1]
-    for name, d in r.term_deflection.items():
-        ax.plot(t, np.linalg.norm(d, axis=1) * 1e6, label=name)
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("|dD| of one term of K (um)")
-    ax.set_title(f"deflection per term of eq. 30, {r.payload:g} kg")
-    ax.legend(loc="best", fontsize=8)
-    ax = axes[1, 2]
-    for k in range(4):
-        ax.plot(t, r.torque[:, k], ls="-" if k % 2 == 0 else "--", label=f"actuator {k + 1}")
-    ax.set_xlabel("t (ms)")
-    ax.set_ylabel("torque (N.m)")
-    ax.set_title("actuator torques, closed-loop inverse dynamics")
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    return save_figure(fig, path, dpi=90)
-
-
 __all__ = ["HEIGHT", "LENGTH", "AdeptCycle", "CycleResult", "Sample", "adept_cycle", "check_reachable",
            "closure_drift", "closure_rows", "cycle_dynamics", "dynamic_deflection", "newmark", "payload_model",
-           "quintic", "report", "run", "sample", "samples_along", "write_figure"]
+           "quintic", "report", "run", "sample", "samples_along"]

@@ -41,11 +41,11 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import limits
-from h4pin.elastic import engine
 from h4pin.elastic.h4 import elastic_model
 from h4pin.elastic.modal import admissible_basis, mass_model
 from h4pin.errors import ParameterError
 from h4pin.kinematics import closed_form as cf
+from h4pin.mechanism import engine
 from h4pin.robot import H4
 from h4pin.studies import cycle as rigid
 

@@ -5,7 +5,7 @@
   (actuators locked, link inertias from the URDF, an optional payload), NaN where the robot
   cannot take the pose or it is singular (the verdicts of :func:`h4pin.compliance`);
 * :func:`frequency_map`: the same over an x-y grid at one height and angle, with the verdicts,
-  and :func:`plot_map`;
+  and :func:`h4pin.plots.frequency_map` draws it;
 * :func:`design_frequencies` and :func:`frequency_pareto`: the first frequency at the centre
   pose of each design of a sweep (:mod:`h4pin.studies.sweep`), and the designs for which no
   other one has both a higher first frequency and a larger workspace.
@@ -18,17 +18,15 @@ model from its parameters, without a URDF (:func:`h4pin.description.urdf.mass_mo
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
 from h4pin import limits, verdicts
-from h4pin.elastic import Payload
 from h4pin.errors import H4Error, ParameterError
-from h4pin.files import save_figure
 from h4pin.kinematics.closed_form import as_poses, centre_pose
+from h4pin.mechanism import Payload
 from h4pin.vibration import modes
 
 
@@ -92,28 +90,6 @@ def frequency_map(h4: Any, x: Any, y: Any, z: float | None = None, theta: float 
         coords={"x": ("x", xs, {"units": "m"}), "y": ("y", ys, {"units": "m"})},
         attrs={"z": zc, "theta": float(theta), "payload_kg": 0.0 if payload is None else payload.mass,
                "h4pin": "frequency_map"})
-
-
-def plot_map(ds, path: str | Path) -> Path:
-    """The map of :func:`frequency_map` as a PNG: colour = first frequency (Hz), the workspace
-    boundary (status 0) in black."""
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(5.6, 4.6), layout="constrained")
-    ax = fig.subplots()
-    x, y = ds.x.values * 1e3, ds.y.values * 1e3
-    mesh = ax.pcolormesh(x, y, ds.first_frequency.values, shading="nearest", cmap="viridis")
-    reach = (ds.status.values == verdicts.OK).astype(float)
-    if 0 < reach.sum() < reach.size and len(x) > 1 and len(y) > 1:
-        ax.contour(x, y, reach, levels=[0.5], colors="k", linewidths=1.2)
-    fig.colorbar(mesh, ax=ax).set_label("first natural frequency [Hz]")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_aspect("equal")
-    payload = ds.attrs.get("payload_kg", 0.0)
-    ax.set_title(f"H4 first natural frequency, z = {ds.attrs['z'] * 1e3:.0f} mm, theta = {ds.attrs['theta']:.2f} rad"
-                 + (f", payload {payload:g} kg" if payload else ""), fontsize=9)
-    return save_figure(fig, path, dpi=110)
 
 
 def design_frequencies(rows: np.ndarray, payload: Payload | None = None, *, progress: bool = True) -> np.ndarray:
@@ -199,26 +175,4 @@ def pareto_indices(freq: np.ndarray, vol: np.ndarray, worst: np.ndarray | None =
     return np.array(sorted(front, key=lambda i: freq[i]), dtype=int)
 
 
-def plot_frequency_pareto(par: dict[str, np.ndarray], path: str | Path) -> Path:
-    """First frequency against workspace volume, coloured by the worst compliance over the task
-    box, the Pareto front of the three highlighted (PNG)."""
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6.2, 4.4), layout="constrained")
-    ax = fig.subplots()
-    w = par["worst"] * 1e6
-    sc = ax.scatter(par["volume"] * 1e3, par["frequency"], s=4, c=w, cmap="viridis_r", norm=LogNorm(w.min(), w.max()),
-                    label=f"{len(w):,} designs reaching the task box", rasterized=True)
-    f = par["front"]
-    ax.scatter(par["volume"][f] * 1e3, par["frequency"][f], s=14, facecolors="none", edgecolors="C3", linewidths=0.8,
-               label=f"Pareto front ({len(f)}: frequency, volume, compliance)")
-    fig.colorbar(sc, ax=ax).set_label("worst compliance over the task box [um/N]")
-    ax.set_xlabel("workspace volume [dm^3]")
-    ax.set_ylabel("first natural frequency [Hz]")
-    ax.legend(fontsize=7, loc="lower left")
-    return save_figure(fig, path, dpi=110)
-
-
-__all__ = ["check_size", "design_frequencies", "first_frequency", "frequency_map", "frequency_pareto", "pareto_indices",
-           "plot_frequency_pareto", "plot_map"]
+__all__ = ["check_size", "design_frequencies", "first_frequency", "frequency_map", "frequency_pareto", "pareto_indices"]

@@ -39,7 +39,7 @@ from h4pin.description.elements import ELEMENTS, Elements
 from h4pin.description.params import H4Params
 from h4pin.errors import ParameterError
 from h4pin.extras import require
-from h4pin.files import check_output, clean_stale, make_readable, save_figure, tmp_prefix
+from h4pin.files import check_output, clean_stale, make_readable, tmp_prefix
 from h4pin.stiffness import frequencies, kernel, pipeline
 from h4pin.studies import _derived
 
@@ -580,33 +580,6 @@ def write_best(res: dict[str, np.ndarray], folder: str | Path, k: int = 3) -> li
     pick = front[np.unique(np.linspace(0, front.size - 1, min(k, front.size)).round().astype(int))]
     paths = [check_output(Path(folder) / f"h4_sweep_{d}.urdf", "folder") for d in pick]  # all, before any is written
     return [write_urdf(params_of(res["designs"][d]), path) for d, path in zip(pick, paths, strict=True)]
-
-
-def plot_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
-    """Worst compliance over the task against workspace volume, front highlighted (PNG)."""
-    from matplotlib.figure import Figure
-
-    path = Path(path)
-    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
-    ax = fig.subplots()
-    ok = res["reach_all"]
-    vol, worst = res["volume"] * 1e3, res["worst"] * 1e6
-    ax.scatter(vol[~ok & res["valid"]], worst[~ok & res["valid"]], s=4, c="0.75",
-               label="misses part of the task workspace (worst over the reached part)")
-    ax.scatter(vol[ok], worst[ok], s=6, c="tab:blue", label="reaches the whole task workspace")
-    front = pareto(res)
-    if front.size:
-        ax.plot(vol[front], worst[front], "o-", c="tab:red", ms=4, label="Pareto front")
-    spec = res["spec"]
-    p = H4Params()
-    proto = evaluate(np.array([[p.half_width[0], p.r[0], p.l[0], 1.0, 1.0, p.kc[0]]]), spec)
-    ax.plot(proto["volume"] * 1e3, proto["worst"] * 1e6, "k*", ms=12, label="prototype")
-    ax.set_yscale("log")
-    ax.set_xlabel("workspace volume at theta = 0 [dm^3]")
-    ax.set_ylabel("worst compliance over the task box [um/N]")
-    ax.set_title(f"{spec.n_designs} designs, {len(spec.task.poses())} task poses, model '{spec.model}'", fontsize=9)
-    ax.legend(fontsize=7)
-    return save_figure(fig, path, dpi=110)
 
 
 def _noop(x: int) -> int:

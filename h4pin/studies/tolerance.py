@@ -36,7 +36,6 @@ from __future__ import annotations
 import dataclasses
 import os
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -45,7 +44,6 @@ from h4pin import limits
 from h4pin.description.geometry import H4Geometry, spring_compliances
 from h4pin.description.params import TOLERANCES
 from h4pin.errors import ConvergenceError, ParameterError
-from h4pin.files import save_figure
 from h4pin.kinematics import closed_form as cf
 from h4pin.stiffness import eq30
 from h4pin.stiffness.matrices import products
@@ -342,12 +340,12 @@ def sensitivity(h4, poses: np.ndarray | None = None, n_robots: int = 1000, sigma
             continue
         only = {k: (s[k] if k == kind else 0.0) for k in KINDS}
         res = study(h4, poses, n_robots, only, seed, model)
-        out[kind] = {name: float(np.subtract(*np.nanpercentile(v - _nominal_of(res, name), [95, 5])))
+        out[kind] = {name: float(np.subtract(*np.nanpercentile(v - nominal_of(res, name), [95, 5])))
                      for name, v in res.outputs().items()}
     return out
 
 
-def _nominal_of(res: ToleranceResult, name: str) -> np.ndarray:
+def nominal_of(res: ToleranceResult, name: str) -> np.ndarray:
     """The nominal value (M,) of an output (0 for the pose errors and the tilt)."""
     k = res.nominal
     table = {"xx": k[:, 0, 0], "yy": k[:, 1, 1], "zz": k[:, 2, 2], "xz": k[:, 0, 2],
@@ -362,7 +360,7 @@ def report(res: ToleranceResult, sens: dict[str, dict[str, float]] | None = None
              "sigmas: " + ", ".join(f"{k} {v * 1e6:g} um" for k, v in res.sigmas.items()), ""]
     pct = {name: np.nanpercentile(v[:, 0], (5, 50, 95)) for name, v in res.outputs().items()}
     lines.append("percentiles over the robots at pose 0 (the centre pose):")
-    nominal_centre = {name: float(_nominal_of(res, name)[0]) for name, _, _ in OUTPUTS}
+    nominal_centre = {name: float(nominal_of(res, name)[0]) for name, _, _ in OUTPUTS}
     lines.append(f"| {'output':<10} | {'unit':<5} | {'nominal@0':>10} | {'p5':>10} | {'p50':>10} | {'p95':>10} |")
     lines.append(f"|{'-' * 12}|{'-' * 7}|{'-' * 12}|{'-' * 12}|{'-' * 12}|{'-' * 12}|")
     for name, f, unit in OUTPUTS:
@@ -385,38 +383,9 @@ def report(res: ToleranceResult, sens: dict[str, dict[str, float]] | None = None
 
 
 def _spread_total(res: ToleranceResult, name: str) -> float:
-    v = res.outputs()[name] - _nominal_of(res, name)
+    v = res.outputs()[name] - nominal_of(res, name)
     return float(np.subtract(*np.nanpercentile(v, [95, 5])))
 
 
-def write_figure(res: ToleranceResult, path: str | Path) -> Path:
-    """Histograms of every output (deviation from nominal for the compliance), written
-    atomically (temporary file, then rename) as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise ParameterError(f"cannot write {path}: folder {path.parent} does not exist")
-    outs = res.outputs()
-    fig, axes = plt.subplots(2, 5, figsize=(16, 6.5))
-    for ax, (name, f, unit) in zip(axes.ravel(), OUTPUTS, strict=True):
-        v = (outs[name] - (_nominal_of(res, name) if name in ("xx", "yy", "zz", "xz", "lambda_max") else 0.0)) * f
-        v = v[np.isfinite(v)]
-        ax.hist(v, bins=60, color="tab:blue", alpha=0.8)
-        for p in np.percentile(v, [5, 50, 95]) if v.size else ():
-            ax.axvline(p, color="k", lw=0.8, ls="--")
-        label = f"d{name}" if name in ("xx", "yy", "zz", "xz", "lambda_max") else name
-        ax.set_xlabel(f"{label} ({unit})")
-        ax.set_yticks([])
-    r, m = res.converged.shape
-    fig.suptitle(f"H4 tolerance study: {r} robots x {m} poses (dashed: 5, 50, 95 %; compliance as deviation "
-                 "from nominal)")
-    fig.tight_layout()
-    return save_figure(fig, path, dpi=90)
-
-
 __all__ = ["DEFAULT_SIGMAS", "KINDS", "OUTPUTS", "BatchGeometry", "ToleranceResult", "check_sigmas", "default_poses",
-           "check_size", "report", "robot_geometry", "sample", "sensitivity", "study", "write_figure"]
+           "check_size", "report", "robot_geometry", "sample", "sensitivity", "study"]

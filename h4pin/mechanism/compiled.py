@@ -12,7 +12,7 @@ configuration and without the interpreter:
    velocity at the world origin, linear part first),
 3. the closures' errors and rows (the relative velocity of their two frames: Pinocchio's
    ``LOCAL`` constraint Jacobian up to a rotation of its rows, so the same admissible motions)
-   scaled as :mod:`h4pin.elastic.engine` scales them (translations over the length scale),
+   scaled as :mod:`h4pin.mechanism.engine` scales them (translations over the length scale),
 4. a basis of the admissible motions by Gauss-Jordan elimination with the largest entry of each
    row as pivot (rows found dependent dropped, locked coordinates left out), skipping the zeros
    of the closures' sparse rows,
@@ -23,7 +23,7 @@ configuration and without the interpreter:
    infinite frequency, which is exactly its static condensation). Frequency i is exact to
    round-off times ``(f_i / f_1)^2``.
 
-Pinocchio stays the reference route (:func:`h4pin.elastic.engine.compliance_matrix`): a
+Pinocchio stays the reference route (:func:`h4pin.mechanism.engine.compliance_matrix`): a
 configuration this path cannot judge with certainty (a closure off by more than the tolerance, a
 pivot or a Cholesky pivot below :data:`FLAG_RATIO`, nothing with mass) gets status
 :data:`FLAGGED` and the caller runs the Pinocchio route for it, whose verdict and message stand.
@@ -151,9 +151,9 @@ class Outputs(NamedTuple):
 
 
 def outputs(model: pin.Model, resolved: list[Any]) -> Outputs:
-    """Arrays of outputs already checked by :func:`h4pin.elastic.engine.output_jacobian`'s callers
+    """Arrays of outputs already checked by :func:`h4pin.mechanism.engine.output_jacobian`'s callers
     (``FrameOutput`` and ``JointOutput`` values)."""
-    from h4pin.elastic.engine import FrameOutput
+    from h4pin.mechanism.engine import FrameOutput
 
     fj, fr, fp, fref, rf, ri, rs = [], [], [], [], [], [], []
     for out in resolved:

@@ -14,7 +14,7 @@ the formats closed-loop robots are published in:
 * ``Mechanism(model, constraint_models, actuated=...)`` for a model built in code.
 
 Then :meth:`~Mechanism.assemble` closes the loops, :meth:`~Mechanism.compliance` gives the
-compliance of output frames under joint springs (the engine of :mod:`h4pin.elastic.engine`), and
+compliance of output frames under joint springs (the engine of :mod:`h4pin.mechanism.engine`), and
 :meth:`~Mechanism.modes` the natural frequencies with the model's inertias
 (:mod:`h4pin.elastic.modal`'s solver). The H4 is one such mechanism with many virtual springs
 (:func:`h4pin.elastic.elastic_model`); ``docs/mechanisms.md`` walks through a five-bar linkage.
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 import threading
-import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -33,56 +32,19 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin._compat import constraint_calc
-from h4pin.elastic import batch, engine
-from h4pin.elastic.couplings import JointCoupling
-from h4pin.elastic.engine import (
-    MASSLESS_TOL,
+from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
+from h4pin.inputs import check_choice
+from h4pin.lookup import finite_configuration, model_configuration
+from h4pin.mechanism import assembly, batch, engine
+from h4pin.mechanism.arguments import items, joint_names
+from h4pin.mechanism.couplings import JointCoupling
+from h4pin.mechanism.engine import (
     FrameOutput,
     JointOutput,
     Modes,
-    UnassembledError,
     admissible_basis,
     undamped_modes,
 )
-from h4pin.errors import MalformedURDFError, MechanismWarning, ParameterError, UnsupportedFeatureError
-from h4pin.inputs import check_choice
-from h4pin.lookup import finite_configuration, model_configuration
-
-#: Closure error (m, and rad for 6-D closures) within which :meth:`Mechanism.assemble` stops.
-ASSEMBLY_TOL = 1e-10
-
-
-def _items(value: Any, single: tuple[type, ...], what: str) -> list[Any]:
-    """``value`` as a list: one item of a ``single`` type, or the items of an iterable; else a
-    :class:`ParameterError` "``what``, got ..."."""
-    if isinstance(value, single):
-        return [value]
-    try:
-        return list(value)
-    except TypeError:
-        raise ParameterError(f"{what}, got {value!r}") from None
-
-
-def _names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str, ...]:
-    """Joint names from names or Pinocchio ids (one, or several), each checked (a typed error
-    naming it)."""
-    if isinstance(joints, bytes):  # list(b"ab") would read as joint ids 97, 98
-        raise ParameterError(f"{what}: joint names (text) or Pinocchio joint ids, got {joints!r}")
-    joints = _items(joints, (str, int, np.integer), f"{what}: joint names or Pinocchio joint ids")
-    out = []
-    for j in joints:
-        if isinstance(j, (int, np.integer)) and not isinstance(j, bool):
-            if not 0 < int(j) < model.njoints:
-                raise ParameterError(f"{what}: joint id {int(j)} is not a joint of the model (1..{model.njoints - 1})")
-            out.append(model.names[int(j)])
-        elif isinstance(j, str):
-            if not model.existJointName(j):
-                known = ", ".join(list(model.names)[1:])
-                raise ParameterError(f"{what}: no joint {j!r} in the model (joints: {known})")
-            out.append(j)
-        else:
-            raise ParameterError(f"{what}: a joint is a name or a Pinocchio joint id, got {j!r}")
-    return tuple(out)
 
 
 def _urdf_ranges(model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
@@ -164,10 +126,9 @@ class Mechanism:
         model = pin.Model(model)
         object.__setattr__(self, "model", model)
         object.__setattr__(self, "constraint_models", _closures(model, constraint_models))
-        object.__setattr__(self, "actuated", _names(model, actuated, "actuated"))
+        object.__setattr__(self, "actuated", joint_names(model, actuated, "actuated"))
         object.__setattr__(self, "name", name or model.name or "mechanism")
         object.__setattr__(self, "_local", threading.local())
-        object.__setattr__(self, "_cache", {})
         values = _file_data(model, self.constraint_models, reference, ranges, springs, couplings)
         for name, value in values.items():
             object.__setattr__(self, name, value)
@@ -193,7 +154,7 @@ class Mechanism:
                   actuated: Iterable[Any] | None = None, free_flyer: bool = False) -> Mechanism:
         """A URDF and its closed-loop sidecar (YAML: ``closed_loop``, ``type``, ``name_mot``,
         ``joint_name``/``joint_type``; default: the URDF's path with ``.yaml``), as Gepetto's
-        loader builds them (:mod:`h4pin.elastic.sidecar`: the joint conversions applied before
+        loader builds them (:mod:`h4pin.mechanism.sidecar`: the joint conversions applied before
         the closures are built), and the sidecar's ``beams:`` as flexible links
         (:meth:`with_beams`); ``actuated`` overrides ``name_mot``; ``free_flyer``: the root on
         a free-flyer joint (legged robots; held in :meth:`compliance` and :meth:`modes` unless
@@ -205,7 +166,7 @@ class Mechanism:
             parse; the sidecar is not such a mapping, a key holds the wrong kind, or it names a
             frame or motor the model lacks.
         """
-        from h4pin.elastic import sidecar as sc
+        from h4pin.mechanism import sidecar as sc
 
         if not isinstance(free_flyer, bool):
             raise ParameterError(f"free_flyer: True or False, got {free_flyer!r}")
@@ -214,7 +175,7 @@ class Mechanism:
         model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
         motors = side.motors if actuated is None else actuated
         try:
-            names = _names(model, motors, f"{side.path}: name_mot")
+            names = joint_names(model, motors, f"{side.path}: name_mot")
         except ParameterError as exc:
             raise MalformedURDFError(str(exc)) from None
         ranges = _urdf_ranges(model)
@@ -257,7 +218,7 @@ class Mechanism:
                 ``<tendon>``), an actuator not on a joint: refused by name, never dropped.
             ParameterError: a motor on a joint the model lacks.
         """
-        from h4pin.elastic import mjcf_reader
+        from h4pin.mechanism import mjcf_reader
 
         model, cms, info = mjcf_reader.read(path)
         if info.refused and actuated is None:
@@ -271,8 +232,8 @@ class Mechanism:
         return mech
 
     def with_beams(self, beams: Mapping[str, Any]) -> Mechanism:
-        """A new mechanism whose links ``{link name: h4pin.elastic.Beam}`` are flexible: each
-        beam's six virtual joints (:mod:`h4pin.elastic.beams`: the virtual joint method, exact for
+        """A new mechanism whose links ``{link name: h4pin.mechanism.Beam}`` are flexible: each
+        beam's six virtual joints (:mod:`h4pin.mechanism.beams`: the virtual joint method, exact for
         an Euler-Bernoulli cantilever from the link's joint to its far end) inserted, with their
         springs in :attr:`beam_springs`, added to every :meth:`compliance` and :meth:`modes`
         call. A configuration of this (rigid) mechanism is accepted as it is (the virtual joints
@@ -286,23 +247,38 @@ class Mechanism:
 
     def to_mjcf(self, path: str | Path, springs: Mapping[Any, Any], q: Any = None, **options: Any) -> Path:
         """Write an elastic MuJoCo model, the springs as joint stiffness at rest at q (default
-        :meth:`assemble`): :func:`h4pin.elastic.mjcf_writer.write` (options, file, errors)."""
-        from h4pin.elastic import mjcf_writer
+        :meth:`assemble`): :func:`h4pin.mechanism.mjcf_writer.write` (options, file, errors)."""
+        from h4pin.mechanism import mjcf_writer
 
         return mjcf_writer.write(self, path, springs, q, **options)
 
     # ------------------------------------------------------------------ geometry
-    def _q(self, q: Any, what: str = "q") -> np.ndarray:
+    def configuration(self, q: Any, what: str = "q") -> np.ndarray:
+        """``q`` checked as a configuration (nq,) of this mechanism (finite, the right size, unit
+        quaternions), a new array; for a mechanism with beams (:meth:`with_beams`), a
+        configuration of the rigid mechanism is accepted too, its beams' joints at 0.
+
+        Raises:
+            ParameterError: not such a configuration (``what`` names it)."""
         lift = self._lift
         if lift is not None and np.shape(q) == (lift[1],):
-            full = np.zeros(self.model.nq)
-            full[lift[0]] = finite_configuration(q, lift[1], what)
-            return full
+            return self.lift(finite_configuration(q, lift[1], what))
         return model_configuration(self.model, q, what)
+
+    def lift(self, q: np.ndarray) -> np.ndarray:
+        """Configurations of the rigid mechanism, (..., rigid nq), as this mechanism's with beams,
+        (..., nq), each beam joint at 0; anything else (this mechanism's own, or no beams) as it
+        is."""
+        lift = self._lift
+        if lift is None or np.shape(q)[-1:] != (lift[1],):
+            return q
+        full = np.zeros((*np.shape(q)[:-1], self.model.nq))
+        full[..., lift[0]] = q
+        return full
 
     def closure_errors(self, q: Any) -> dict[str, tuple[float, float]]:
         """``{closure: (translation error m, rotation error rad)}`` at q (rotation 0 for 3-D)."""
-        q = self._q(q)
+        q = self.configuration(q)
         d = self.data
         pin.forwardKinematics(self.model, d, q)
         out = {}
@@ -315,7 +291,7 @@ class Mechanism:
         return out
 
     def assemble(self, q: Any = None, *, motors: Any = None, fixed: Iterable[Any] | None = None,
-                 tol: float = ASSEMBLY_TOL, iterations: int = 100) -> np.ndarray:
+                 tol: float = assembly.ASSEMBLY_TOL, iterations: int = 100) -> np.ndarray:
         """A configuration with every closure closed (within ``tol`` m, and rad for 6-D
         closures), from ``q`` (default :attr:`reference`, the file's) with the joints ``fixed``
         (default the actuated ones) held, every other one-coordinate joint kept in its range.
@@ -335,37 +311,7 @@ class Mechanism:
                 held joint is outside its range (names it).
             ParameterError: a bad q, joint, tol or iterations.
         """
-        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not (0 < tol < math.inf):
-            raise ParameterError(f"tol: a finite tolerance > 0 (m, rad), got {tol!r}")
-        if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
-            raise ParameterError(f"iterations: an integer >= 1, got {iterations!r}")
-        model = self.model
-        start = np.array(self.reference) if q is None else self._q(q)
-        if motors is not None and fixed is not None:
-            raise ParameterError("give motors= or fixed=, not both (motors holds the actuated joints)")
-        held = _names(model, self.actuated if fixed is None else fixed, "fixed")
-        held = held + tuple(n for n in self.beam_springs if n not in held)  # a beam's joints: rigid assembly
-        if motors is not None:
-            def close(s: np.ndarray) -> np.ndarray:
-                _check_ranges(self, s, held, "held")
-                return _close(self, s, held, float(tol), int(iterations), newton_first=True)
-
-            out, one = batch.assemble_motors(self, start, motors, close)
-            return out[0] if one else out
-        _check_ranges(self, start, held, "held")
-        try:
-            return _close(self, start, held, float(tol), int(iterations))
-        except UnassembledError:
-            if fixed is not None or not held:
-                raise
-        out = _close(self, start, (), float(tol), int(iterations))
-        moved = []
-        for n in held:
-            j = model.joints[model.getJointId(n)]
-            moved.append(f"{n} {float(np.linalg.norm(pin.difference(model, start, out)[j.idx_v:j.idx_v + j.nv])):.3g}")
-        warnings.warn(f"{self.name}: the loops do not close with the motors where the start holds them; assembled "
-                      f"with the motors free (moved by, rad or m: {', '.join(moved)})", MechanismWarning, stacklevel=2)
-        return out
+        return assembly.assemble(self, q, motors, fixed, tol, iterations)
 
     # ------------------------------------------------------------------ stiffness
     def compliance(self, q: Any, springs: Mapping[Any, Any], outputs: Sequence[Any],
@@ -376,8 +322,8 @@ class Mechanism:
         (``dy = C w``, m/N, rad/(N.m)); ``springs``: ``{joint: stiffness}`` (N.m/rad, N/m; a
         scalar for every coordinate of a multi-coordinate joint, or one value each), joints
         without a spring free, ``locked`` held, and a free-flyer root (:attr:`free_flyers`)
-        held unless ``free_root`` or it has a spring (:func:`h4pin.elastic.engine.compliance_matrix`).
-        ``method``: ``auto``, ``compiled`` or ``pinocchio`` (:mod:`h4pin.elastic.batch`: the
+        held unless ``free_root`` or it has a spring (:func:`h4pin.mechanism.engine.compliance_matrix`).
+        ``method``: ``auto``, ``compiled`` or ``pinocchio`` (:mod:`h4pin.mechanism.batch`: the
         compiled generic path, equal to the Pinocchio route to round-off); ``threads``: for a
         batch (default one per core).
 
@@ -402,11 +348,11 @@ class Mechanism:
         """Undamped natural modes at an assembled q (nq,), or the frequencies at each of a batch
         Q (N, nq), with the model's inertias, the springs and the locked joints of
         :meth:`compliance` (a free-flyer root held unless ``free_root``), and an optional
-        ``payload``: ``(frame, h4pin.elastic.Payload)`` fixed to that frame (its com and inertia in
+        ``payload``: ``(frame, h4pin.mechanism.Payload)`` fixed to that frame (its com and inertia in
         the frame's axes). Massless directions are condensed statically
         (:func:`h4pin.elastic.modal.undamped_modes`). One configuration gives the shapes too (the
         Pinocchio route); a batch gives frequencies (N, m) (``method`` and ``threads`` as in
-        :meth:`compliance`); :attr:`Modes.first <h4pin.elastic.engine.Modes>` is the first frequency.
+        :meth:`compliance`); :attr:`Modes.first <h4pin.mechanism.engine.Modes>` is the first frequency.
 
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
@@ -434,7 +380,7 @@ def _springs(mech: Mechanism, springs: Mapping[Any, Any]) -> dict[str, Any]:
     """The checked springs of a call, the beams' included."""
     if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
         raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
-    names = _names(mech.model, list(springs), "springs")
+    names = joint_names(mech.model, list(springs), "springs")
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
@@ -445,7 +391,7 @@ def _locked(mech: Mechanism, locked: Iterable[Any], springs: Mapping[str, Any], 
     """The locked joints of a call: ``locked``, and the free-flyer roots unless freed or sprung."""
     if not isinstance(free_root, bool):
         raise ParameterError(f"free_root: True or False, got {free_root!r}")
-    names = _names(mech.model, locked, "locked")
+    names = joint_names(mech.model, locked, "locked")
     both = sorted(set(names) & set(springs))
     if both:
         raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
@@ -485,13 +431,13 @@ def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, spr
         r.setflags(write=False)
     stiff = {} if springs is None else dict(springs)
     if stiff:
-        stiff = dict(zip(_names(model, list(stiff), "springs"), stiff.values(), strict=True))
+        stiff = dict(zip(joint_names(model, list(stiff), "springs"), stiff.values(), strict=True))
         engine.stiffness_vector(model, stiff)  # checked now
     cps = tuple(couplings)
     for c in cps:
         if not isinstance(c, JointCoupling):
             raise ParameterError(f"couplings: JointCoupling values, got {c!r}")
-        _names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
+        joint_names(model, [c.joint1] + ([c.joint2] if c.joint2 is not None else []), "couplings")
         c.residual_row(model, pin.neutral(model))
     roots = tuple(model.names[j] for j in range(1, model.njoints)
                   if model.parents[j] == 0 and model.joints[j].shortname() == "JointModelFreeFlyer"
@@ -500,19 +446,8 @@ def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, spr
             "beam_springs": {}, "_lift": None, "free_flyers": roots}
 
 
-def _check_ranges(mech: Mechanism, q: np.ndarray, joints: Iterable[str], what: str) -> None:
-    lo, hi = mech.ranges
-    for n in joints:
-        j = mech.model.joints[mech.model.getJointId(n)]
-        sl = slice(j.idx_q, j.idx_q + j.nq)
-        bad = (q[sl] < lo[sl] - 1e-12) | (q[sl] > hi[sl] + 1e-12)
-        if np.any(bad):
-            raise UnassembledError(f"{mech.name}: {what} joint {n!r} is at {q[sl][bad][0]:.6g}, outside its range "
-                                   f"[{lo[sl][bad][0]:.6g}, {hi[sl][bad][0]:.6g}]")
-
-
 def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
-    outputs = _items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
+    outputs = items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
     out = []
     for o in outputs:
         if isinstance(o, str):
@@ -524,7 +459,7 @@ def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
                 raise ParameterError(f"outputs: no frame {o.frame!r} in {mech.name}")
             out.append(o)
         elif isinstance(o, JointOutput):
-            _names(mech.model, [o.joint], "outputs")
+            joint_names(mech.model, [o.joint], "outputs")
             out.append(o)
         else:
             raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
@@ -533,121 +468,12 @@ def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
     return out
 
 
-def _close(mech: Mechanism, start: np.ndarray, held: Sequence[str], tol: float, iterations: int,
-           newton_first: bool = False) -> np.ndarray:
-    """Trust-region then Gauss-Newton with ``held`` fixed (:meth:`assemble`); ``newton_first``:
-    Gauss-Newton's least-norm steps alone first (continuation from a neighbour: the nearest
-    closed configuration, not the trust region's), the trust region only if they fail."""
-    from scipy.optimize import least_squares
-
-    model, d = mech.model, mech.data
-    free = np.ones(model.nv, dtype=bool)
-    for n in held:
-        j = model.joints[model.getJointId(n)]
-        free[j.idx_v:j.idx_v + j.nv] = False
-    lo, hi = mech.ranges
-    q0 = np.array(start)
-    lower, upper = np.full(model.nv, -np.inf), np.full(model.nv, np.inf)
-    for j in range(1, model.njoints):
-        jm = model.joints[j]
-        if jm.nq == 1 and jm.nv == 1 and free[jm.idx_v] and np.isfinite(lo[jm.idx_q]):
-            q0[jm.idx_q] = min(max(q0[jm.idx_q], lo[jm.idx_q]), hi[jm.idx_q])
-            lower[jm.idx_v], upper[jm.idx_v] = lo[jm.idx_q] - q0[jm.idx_q], hi[jm.idx_q] - q0[jm.idx_q]
-    pin.forwardKinematics(model, d, q0)
-    scale = engine.length_scale(model, d)
-    embed = np.eye(model.nv)[:, free]
-
-    def at(x: np.ndarray) -> np.ndarray:
-        return pin.integrate(model, q0, embed @ x)
-
-    def residual(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[float, str]]:
-        pin.computeJointJacobians(model, d, q)
-        rows, res, worst = [], [], (0.0, "")
-        for cm in mech.constraint_models:
-            r, jac, err = _closure_step(model, d, cm)
-            w = np.ones(len(r))
-            w[:3] = 1.0 / scale
-            rows.append(jac * w[:, None])
-            res.append(r * w)
-            worst = max(worst, (err, cm.name))
-        for c in mech.couplings:
-            r, row = c.residual_row(model, q)
-            rows.append(row[None])
-            res.append(np.array([r]))
-            worst = max(worst, (abs(r), f"coupling {c.joint1}"))
-        return np.concatenate(res), np.vstack(rows), worst
-
-    if not mech.constraint_models and not mech.couplings:
-        return q0
-    def newton_step(r: np.ndarray, jc: np.ndarray) -> np.ndarray:  # least-norm, the held joints fixed
-        step = np.zeros(model.nv)
-        step[free] = -np.linalg.lstsq(jc[:, free], r, rcond=None)[0]
-        return step
-
-    joints = [model.names[j] for j in range(1, model.njoints)]
-    if newton_first and free.any():
-        q = q0
-        for _ in range(iterations):
-            r, jc, worst = residual(q)
-            if worst[0] <= 1e-3 * tol:  # Newton converges quadratically: a step more is all but free
-                try:
-                    _check_ranges(mech, q, joints, "assembled:")
-                    return q
-                except UnassembledError:
-                    break
-            step = newton_step(r, jc)
-            if not np.all(np.isfinite(step)) or np.linalg.norm(step) > 1.0:
-                break
-            q = pin.integrate(model, q, step)
-    if free.any():
-        last: dict[bytes, Any] = {}
-
-        def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # least_squares asks fun, then jac, at one x
-            key = x.tobytes()
-            if key not in last:
-                last.clear()
-                r, jc, _ = residual(at(x))
-                last[key] = (r, jc @ pin.dIntegrate(model, q0, embed @ x, pin.ARG1) @ embed)
-            return last[key]
-
-        def fun(x: np.ndarray) -> np.ndarray:
-            return both(x)[0]
-
-        def jac(x: np.ndarray) -> np.ndarray:
-            return both(x)[1]
-
-        x0 = np.zeros(int(free.sum()))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            sol = least_squares(fun, x0, jac=jac, bounds=(lower[free], upper[free]), method="trf",
-                                xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max(iterations, 20) * 5)
-        q = at(sol.x)
-    else:
-        q = q0
-    worst = (math.inf, "")
-    for _ in range(iterations):
-        r, jc, worst = residual(q)
-        if worst[0] <= tol:
-            break
-        if not free.any():
-            break
-        q = pin.integrate(model, q, newton_step(r, jc))
-    else:
-        worst = residual(q)[2]
-    if not worst[0] <= tol:
-        raise UnassembledError(f"{mech.name}: the loops do not close from this start: closure {worst[1]!r} is off "
-                               f"by {worst[0]:.3e} (tolerance {tol:g}); start nearer, or hold other joints "
-                               "(fixed=...)")
-    _check_ranges(mech, q, joints, "assembled:")
-    return q
-
-
 def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     """:meth:`Mechanism.with_beams`."""
-    from h4pin.elastic import beams as bm
+    from h4pin.mechanism import beams as bm
 
     if not isinstance(beams, Mapping) or not beams:
-        raise ParameterError(f"beams: a mapping {{link name: h4pin.elastic.Beam}}, got {beams!r}")
+        raise ParameterError(f"beams: a mapping {{link name: h4pin.mechanism.Beam}}, got {beams!r}")
     model = mech.model
     d = model.createData()
     pin.framesForwardKinematics(model, d, mech.reference)
@@ -669,31 +495,4 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     return out
 
 
-def _closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np.ndarray, float]:
-    """A closure's residual, its Jacobian (rows, nv) and its error: world position gap for a
-    3-D closure; ``log6`` of the relative placement (frame 1's axes) for a 6-D one."""
-    o1 = d.oMi[cm.joint1_id] * cm.joint1_placement
-    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
-    lwa = pin.LOCAL_WORLD_ALIGNED
-    if cm.type == pin.ContactType.CONTACT_3D:
-        j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, lwa)[:3]
-        j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, lwa)[:3]
-        r = o2.translation - o1.translation
-        return r, j2 - j1, float(np.linalg.norm(r))
-    rel = o1.inverse() * o2
-    j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL)
-    j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL)
-    r = pin.log6(rel).vector
-    jac = pin.Jlog6(rel) @ (j2 - rel.inverse().toActionMatrix() @ j1)
-    return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))
-
-
-def __getattr__(name: str) -> Any:
-    if name == "MechanismModes":  # one result type for natural frequencies
-        warnings.warn("h4pin.elastic.MechanismModes is now h4pin.elastic.Modes (one result type for natural "
-                      "frequencies); the old name goes in the next release", DeprecationWarning, stacklevel=2)
-        return Modes
-    raise AttributeError(f"module 'h4pin.elastic.mechanism' has no attribute {name!r}")
-
-
-__all__ = ["ASSEMBLY_TOL", "MASSLESS_TOL", "JointCoupling", "Mechanism", "Modes", "checked_springs"]
+__all__ = ["Mechanism", "checked_springs"]

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""An MJCF file read as MuJoCo means it, for :meth:`h4pin.elastic.Mechanism.from_mjcf`.
+"""An MJCF file read as MuJoCo means it, for :meth:`h4pin.mechanism.Mechanism.from_mjcf`.
 
 Two readers, each for what it does right:
 
@@ -21,7 +21,7 @@ Two readers, each for what it does right:
   ``stiffness`` and ``springref`` (all in Pinocchio's coordinates), the equalities
   and the actuators' transmissions.
 
-Joint couplings (``<equality><joint polycoef>``) become :class:`~h4pin.elastic.couplings.JointCoupling`
+Joint couplings (``<equality><joint polycoef>``) become :class:`~h4pin.mechanism.couplings.JointCoupling`
 constraints. What neither reader can represent is refused by name
 (:class:`~h4pin.errors.UnsupportedFeatureError`): tendon equalities, actuators that do not drive a
 joint (unless the motors are given).
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from h4pin.elastic.couplings import JointCoupling
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
+from h4pin.mechanism.couplings import JointCoupling
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,7 +169,7 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
     (module docstring).
 
     Raises:
-        as :meth:`h4pin.elastic.Mechanism.from_mjcf`.
+        as :meth:`h4pin.mechanism.Mechanism.from_mjcf`.
     """
     from h4pin.extras import MissingExtraError, require
 

@@ -20,7 +20,7 @@ configuration, massless (the link's inertia stays as the file gives it):
   integrates the cantilever's ``∫ (s, 1)(s, 1)ᵀ ds / EI`` exactly, so the far end's 6 x 6
   compliance is the beam's to round-off.
 
-The same :func:`h4pin.elastic.engine.insert_joints` hangs the H4's element joints.
+The same :func:`h4pin.mechanism.engine.insert_joints` hangs the H4's element joints.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from h4pin.elastic.engine import Insertion, VirtualJoint
 from h4pin.errors import ParameterError
+from h4pin.mechanism.engine import Insertion, VirtualJoint
 
 #: The virtual joints of a beam on link ``<link>``: ``<link>_beam_<suffix>``.
 SUFFIXES = ("axial", "torsion", "bend_z1", "bend_z2", "bend_y1", "bend_y2")
@@ -127,14 +127,14 @@ class Beam:
 
 
 def insertion(model: pin.Model, data: pin.Data, constraint_models: Any, link: str, beam: Beam) -> Insertion:
-    """The :class:`~h4pin.elastic.engine.Insertion` of ``beam`` on ``link`` (a body frame of
+    """The :class:`~h4pin.mechanism.engine.Insertion` of ``beam`` on ``link`` (a body frame of
     ``model``; ``data`` at the reference configuration, frames placed).
 
     Raises:
         ParameterError: no such link, no far end, several without ``to`` (listed), a bad ``to``.
     """
     if not isinstance(beam, Beam):
-        raise ParameterError(f"beams: {link!r} -> an h4pin.elastic.Beam, got {beam!r}")
+        raise ParameterError(f"beams: {link!r} -> an h4pin.mechanism.Beam, got {beam!r}")
     if not isinstance(link, str) or not model.existFrame(link, pin.FrameType.BODY):
         bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
         raise ParameterError(f"beams: no link {link!r} (links: {', '.join(bodies)})")

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Joint couplings of a closed-loop robot (MJCF ``<equality><joint polycoef>``): constraints
-like its closures, for :class:`h4pin.elastic.Mechanism`."""
+like its closures, for :class:`h4pin.mechanism.Mechanism`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """A rigid payload (:class:`Payload`): mass, centre of mass and inertia, checked and ranged; what
 the natural frequencies of the H4 (:func:`h4pin.modes`) and of any mechanism
-(:meth:`h4pin.elastic.Mechanism.modes`) add at a frame."""
+(:meth:`h4pin.mechanism.Mechanism.modes`) add at a frame."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from h4pin.errors import ParameterError
 class Payload:
     """A rigid body fixed to a frame: for the H4, the central bar (the tool and what it carries,
     frame ``D``: the world axes at theta = 0, turned by theta about z); for a
-    :class:`~h4pin.elastic.Mechanism`, the frame its ``modes(payload=(frame, Payload(...)))`` names.
+    :class:`~h4pin.mechanism.Mechanism`, the frame its ``modes(payload=(frame, Payload(...)))`` names.
 
     Attributes:
         mass: kg, >= 0.

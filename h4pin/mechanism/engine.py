@@ -323,7 +323,7 @@ def admissible_basis(model: pin.Model, constraint_models: Any, q: np.ndarray, lo
     translations over the length scale), after the closure and singularity checks (module
     docstring); ``k`` (nv,) the springs (zero where none), ``extra_rows`` (r, nv): further
     constraints (joint couplings). ``pin.computeJointJacobians`` must have run in ``d`` at q.
-    :func:`compliance_matrix`, :meth:`h4pin.elastic.Mechanism.modes` and the elastic cycle use it.
+    :func:`compliance_matrix`, :meth:`h4pin.mechanism.Mechanism.modes` and the elastic cycle use it.
 
     Raises:
         UnassembledError: a closure does not hold at q. UnrestrainedMotionError: a motion strains
@@ -385,23 +385,13 @@ def undamped_modes(n: np.ndarray, k: np.ndarray, mass: np.ndarray) -> tuple[np.n
     return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * math.pi), shapes_q, int(np.count_nonzero(~heavy))
 
 
-def compliance(*args: Any, **kwargs: Any) -> np.ndarray:
-    """Deprecated name of :func:`compliance_matrix` (``h4pin.compliance`` returns a
-    ``Compliance`` object; this returns an array): kept one release."""
-    import warnings
-
-    warnings.warn("h4pin.elastic.compliance is now h4pin.elastic.compliance_matrix (it returns an array; "
-                  "h4pin.compliance returns a Compliance); the old name goes in the next release",
-                  DeprecationWarning, stacklevel=2)
-    return compliance_matrix(*args, **kwargs)
-
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Modes:
     """Undamped natural modes, of one configuration or of a batch, the same fields either way:
     what :func:`h4pin.modes` (the H4 at a pose or many), :func:`h4pin.elastic.modal.modes` and
-    :meth:`h4pin.elastic.Mechanism.modes` (a configuration or many) return.
+    :meth:`h4pin.mechanism.Mechanism.modes` (a configuration or many) return.
 
     Attributes:
         frequencies: (m,) Hz ascending, or (N, m) for a batch (NaN past each one's count, and
@@ -423,7 +413,7 @@ class Modes:
     payload: Any = None
     poses: np.ndarray | None = None
     shapes: Any = dataclasses.field(default=None, repr=False)  # (shapes_tp or None, shapes_q), or a callable
-    condensed: Any = dataclasses.field(default=None, repr=False)  # massless directions (the old count)
+    condensed: Any = dataclasses.field(default=None, repr=False)  # massless directions condensed (a count)
 
     @property
     def first(self) -> Any:
@@ -450,24 +440,9 @@ class Modes:
             raise ParameterError("shapes_tp: the H4 plate's motions (a mechanism's modes have shapes_q)")
         return tp
 
-    @property
-    def pose(self) -> np.ndarray | None:
-        """Deprecated name of :attr:`poses` (kept one release)."""
-        _deprecated("Modes.pose is now Modes.poses")
-        return self.poses
-
-    @property
-    def massless(self) -> Any:
-        """Deprecated: the massless directions condensed; :attr:`massive` counts the frequencies
-        (kept one release)."""
-        _deprecated("Modes.massless is deprecated: Modes.massive counts the frequencies (the massive directions)")
-        return self.condensed
 
 
-def _deprecated(message: str) -> None:
-    import warnings
 
-    warnings.warn(message + "; the old name goes in the next release", DeprecationWarning, stacklevel=3)
 
 
 def _unrestrained(model: pin.Model, frozen: np.ndarray, cond: float) -> UnrestrainedMotionError:
@@ -616,18 +591,9 @@ def _add_chain(new: pin.Model, parent_id: int, o_m_parent: pin.SE3, joints: list
     return jid, pin.SE3(np.eye(3), previous)
 
 
-def __getattr__(name: str) -> Any:
-    if name == "SINGULAR_COND":  # one name, one meaning: h4pin.verdicts.SINGULAR_COND is the H4's M1 threshold
-        import warnings
-
-        warnings.warn("h4pin.elastic.engine.SINGULAR_COND is now h4pin.verdicts.CLOSURE_SINGULAR_COND (the same "
-                      "1e10; verdicts.SINGULAR_COND is the H4's M1 threshold); the old name goes in the next release",
-                      DeprecationWarning, stacklevel=2)
-        return CLOSURE_SINGULAR_COND
-    raise AttributeError(f"module 'h4pin.elastic.engine' has no attribute {name!r}")
 
 
 __all__ = ["CLOSURE_TOL", "MASSLESS_TOL", "RANK_TOL", "FrameOutput", "Insertion", "JointOutput",
            "Modes", "Output", "admissible_basis", "compliance_matrix", "undamped_modes",
-           "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "closure_residual", "compliance",
+           "UnassembledError", "UnrestrainedMotionError", "VirtualJoint", "closure_residual",
            "insert_joints", "length_scale", "output_jacobian", "stiffness_vector"]

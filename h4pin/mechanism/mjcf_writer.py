@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Any mechanism as an elastic MuJoCo model (``mujoco`` extra): :meth:`Mechanism.to_mjcf
-<h4pin.elastic.Mechanism.to_mjcf>`, the counterpart of :mod:`h4pin.elastic.mjcf_reader`.
+<h4pin.mechanism.Mechanism.to_mjcf>`, the counterpart of :mod:`h4pin.mechanism.mjcf_reader`.
 
 :func:`spec` builds a ``mujoco.MjSpec`` from the mechanism's Pinocchio model, its closures and a
 set of joint springs; :func:`to_xml` has MuJoCo write it (every number to 17 significant
@@ -56,9 +56,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from h4pin.elastic import engine
 from h4pin.errors import ParameterError, UnsupportedFeatureError
 from h4pin.files import check_output, check_replace, write_text
+from h4pin.mechanism import engine
 
 #: The elastic exports: time step (s), and the closures' solref (time constant s, damping ratio)
 #: and solimp. A closure then acts as a spring of stiffness ~ m_eff d / ((1 - d) tau^2) (m_eff
@@ -86,7 +86,7 @@ KEYFRAME = "q0"
 MIN_MUJOCO_ELASTIC = "3.2.5"
 #: Largest closure error (m, rad) of a configuration written as the rest configuration.
 CLOSED_TOL = 1e-9
-_WHAT = "the elastic MuJoCo export of a mechanism (h4pin.elastic.mjcf_writer)"
+_WHAT = "the elastic MuJoCo export of a mechanism (h4pin.mechanism.mjcf_writer)"
 
 
 # ---------------------------------------------------------------- helpers shared with h4pin.io.mjcf
@@ -206,7 +206,7 @@ def set_spring(mujoco: Any, j: Any, stiffness: float, damping: float, springref:
 # ---------------------------------------------------------------- a mechanism
 def _spring_values(model: pin.Model, springs: Mapping[Any, Any], beam_springs: Mapping[str, Any]) -> dict[str, float]:
     """``{joint name: one stiffness}`` of the beams' springs and ``springs`` (names or joint ids),
-    checked as :func:`h4pin.elastic.engine.stiffness_vector` checks them."""
+    checked as :func:`h4pin.mechanism.engine.stiffness_vector` checks them."""
     if not isinstance(springs, Mapping):
         raise ParameterError(f"springs: a mapping {{joint: stiffness}}, got {springs!r}")
     named: dict[str, Any] = dict(beam_springs)
@@ -399,7 +399,7 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
     module's description).
 
     Args:
-        mech: an :class:`h4pin.elastic.Mechanism` (with beams: their springs are added).
+        mech: an :class:`h4pin.mechanism.Mechanism` (with beams: their springs are added).
         springs: ``{joint: stiffness}`` (names or joint ids; N.m/rad, N/m), as
             :meth:`Mechanism.compliance` takes them.
         q: an assembled configuration (nq,), the springs' rest and the keyframe (default
@@ -468,7 +468,7 @@ def to_xml(mech: Any, springs: Mapping[Any, Any], q: Any = None, **options: Any)
     with full_precision(mujoco):
         text = s.to_xml()
     note = ("<!-- SPDX-License-Identifier: Apache-2.0 -->\n"
-            f"<!-- The mechanism '{s.modelname}', written by h4pin.elastic.mjcf_writer through MuJoCo "
+            f"<!-- The mechanism '{s.modelname}', written by h4pin.mechanism.mjcf_writer through MuJoCo "
             f"{mujoco.__version__}'s MjSpec: one body per joint, the springs as joint stiffness (rest at keyframe "
             f"{KEYFRAME}), the motors without a spring locked, the closures as connect/weld equalities. -->\n")
     head, sep, rest = text.partition("\n")

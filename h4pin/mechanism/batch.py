@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Batches of configurations for :class:`h4pin.elastic.Mechanism`: the route of each call (the
-compiled generic path of :mod:`h4pin.elastic.compiled`, or Pinocchio's), blocks of
+"""Batches of configurations for :class:`h4pin.mechanism.Mechanism`: the route of each call (the
+compiled generic path of :mod:`h4pin.mechanism.compiled`, or Pinocchio's), blocks of
 configurations over threads, a size estimate before anything is allocated, and assembly over a
 list of motor positions by continuation.
 
@@ -16,6 +16,7 @@ configurations with the same errors.
 from __future__ import annotations
 
 import os
+import weakref
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -24,9 +25,9 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin import _jit, limits
-from h4pin.elastic import compiled, engine
-from h4pin.elastic.payload import Payload
-from h4pin.errors import H4Error, ParameterError
+from h4pin.errors import H4Error, ParameterError, located
+from h4pin.mechanism import compiled, engine
+from h4pin.mechanism.payload import Payload
 
 METHODS = ("auto", "compiled", "pinocchio")
 GATE = _jit.Gate("generic mechanism path", compiled.batch, step="mechanism")
@@ -36,6 +37,8 @@ BLOCK = 64
 #: and configurations a second of the compiled path on one core (measured about 2e4 on the 48-DoF
 #: robots of the corpus, one thread; rounded down).
 BYTES_PER_CONFIGURATION = 256
+#: Each mechanism's compiled tables (read-only once made), by payload; gone with the mechanism.
+_TABLES: weakref.WeakKeyDictionary[Any, dict[Any, Any]] = weakref.WeakKeyDictionary()
 CONFIGURATIONS_PER_S = 1e4
 
 
@@ -51,7 +54,7 @@ def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool
     """``(Q (N, nq), one)``: a configuration (nq,) or a batch (N, nq) of ``mech`` (or of the
     rigid mechanism a beam model lifts), checked at once; ``one`` when a single one was given."""
     if np.ndim(q) != 2:
-        return mech._q(q, what)[None], True
+        return mech.configuration(q, what)[None], True
     try:
         arr = np.array(q, dtype=float)
     except (TypeError, ValueError):
@@ -60,11 +63,7 @@ def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool
     if n == 0:
         raise ParameterError(f"{what}: an empty batch (give at least one configuration)")
     limits.check_size(f"{mech.name}: {n:,} configurations", n * (BYTES_PER_CONFIGURATION + 8 * nq))
-    lift = mech._lift
-    if lift is not None and arr.shape[1] == lift[1]:  # a configuration of the rigid mechanism: beams at 0
-        full = np.zeros((n, nq))
-        full[:, lift[0]] = arr
-        arr = full
+    arr = mech.lift(arr)  # a configuration of the rigid mechanism: its beams at 0
     if arr.shape[1] != nq:
         raise ParameterError(f"{what}: configurations of shape (N, {nq}), got shape {arr.shape}")
     bad = np.argwhere(~np.isfinite(arr))
@@ -74,15 +73,10 @@ def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool
     return arr, False
 
 
-def _at(exc: H4Error, where: str | None) -> H4Error:
-    """``exc`` with ``where`` (which configuration of a batch) in front of its message."""
-    if where is not None and exc.args:
-        exc.args = (f"{where}: {exc.args[0]}",) + exc.args[1:]
-    return exc
 
 
 def _tables(mech: Any, payload: tuple[int, pin.Inertia] | None = None) -> compiled.Tables | None:
-    cache = mech._cache
+    cache = _TABLES.setdefault(mech, {})
     key = ("tables", None if payload is None else (payload[0], payload[1].mass, *payload[1].lever,
                                                    *payload[1].inertia.reshape(-1)))
     if key not in cache:
@@ -159,7 +153,7 @@ def compliance(mech: Any, Q: np.ndarray, one: bool, stiff: dict[str, Any], outs:
             comp[i] = engine.compliance_matrix(model, mech.constraint_models, Q[i], locked=lock, stiffness=stiff,
                                                outputs=outs, data=mech.data, extra_rows=coupling_rows(mech, Q[i]))
         except H4Error as exc:
-            raise _at(exc, None if one else f"configuration {i}") from None
+            raise located(exc, None if one else f"configuration {i}") from None
     return comp
 
 
@@ -179,15 +173,15 @@ def coupling_rows(mech: Any, q: np.ndarray) -> np.ndarray | None:
 
 
 def payload_inertia(model: pin.Model, payload: Any) -> tuple[int, pin.Inertia] | None:
-    """``(joint id, inertia in that joint's frame)`` of ``(frame, h4pin.elastic.Payload)``."""
+    """``(joint id, inertia in that joint's frame)`` of ``(frame, h4pin.mechanism.Payload)``."""
     if payload is None:
         return None
     try:
         frame, body = payload
     except (TypeError, ValueError):
-        raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}") from None
+        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
     if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
-        raise ParameterError(f"payload: (frame name, h4pin.elastic.Payload), got {payload!r}")
+        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}")
     f = model.frames[model.getFrameId(frame)]
     inertia = pin.Inertia(float(body.mass), np.asarray(body.com, dtype=float), np.asarray(body.inertia, dtype=float))
     return int(f.parentJoint), f.placement.act(inertia)
@@ -213,46 +207,8 @@ def frequencies(mech: Any, Q: np.ndarray, stiff: dict[str, Any], lock: tuple[str
             try:
                 rows[i] = one_config(Q[i])
             except H4Error as exc:
-                raise _at(exc, f"configuration {i}") from None
+                raise located(exc, f"configuration {i}") from None
     out = np.full((len(Q), max(len(r) for r in rows)), np.nan)
     for i, r in enumerate(rows):
         out[i, :len(r)] = r
     return out
-
-
-def assemble_motors(mech: Any, start: np.ndarray, motors: Any, close: Any) -> tuple[np.ndarray, bool]:
-    """Configurations with the motors at ``motors`` ((n_act,) or (N, n_act), in
-    ``mech.actuated`` order), each closed from the one before (continuation; the first from
-    ``start``) by ``close(start)``; and whether one row was given."""
-    model = mech.model
-    idx = []
-    for name in mech.actuated:
-        j = model.joints[model.getJointId(name)]
-        if j.nq != 1 or j.nv != 1:
-            raise ParameterError(f"motors: motor joint {name!r} has {j.nq} coordinates; only one-coordinate motors "
-                                 "can be set by value (use assemble(q, fixed=...))")
-        idx.append(j.idx_q)
-    try:
-        m = np.asarray(motors, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"motors: numbers, shape ({len(idx)},) or (N, {len(idx)}), got {motors!r}") from None
-    one = m.ndim == 1
-    m = np.atleast_2d(m)
-    if m.ndim != 2 or m.shape[1] != len(idx) or len(m) == 0:
-        raise ParameterError(f"motors: shape ({len(idx)},) or (N, {len(idx)}) (the motors {list(mech.actuated)}), "
-                             f"got {np.shape(motors)}")
-    bad = np.flatnonzero(~np.all(np.isfinite(m), axis=1))
-    if bad.size:
-        raise ParameterError(f"motors[{bad[0]}]: not finite ({m[bad[0]].tolist()})")
-    limits.check_size(f"{mech.name}: assembly at {len(m):,} motor positions", len(m) * 8 * (model.nq + 2 * len(idx)),
-                      len(m) / 200.0)
-    out = np.zeros((len(m), model.nq))
-    q = np.array(start)
-    for i, row in enumerate(m):
-        q[idx] = row
-        try:
-            q = close(q)
-        except H4Error as exc:
-            raise _at(exc, None if one else f"motors[{i}] = {row.tolist()}") from None
-        out[i] = q
-    return out, one

@@ -11,7 +11,7 @@ Gepetto's ``example-parallel-robots`` publishes each robot as ``robot.urdf`` (a 
 * ``name_mot``: the motor joints;
 * ``beams`` (optional, h4pin's own key): flexible links, ``{link: {E:, G:, d:}}`` for a round
   section or the six values ``E, G, A, Iy, Iz, J``, with ``to:`` and ``carry:`` where needed
-  (:class:`h4pin.elastic.Beam`);
+  (:class:`h4pin.mechanism.Beam`);
 * ``joint_name`` / ``joint_type`` (optional): joints the loader replaces before it closes the
   loops, because a URDF has no ball or universal joint: ``SPHERICAL`` (a ball joint at the same
   place), ``UJOINT_ab`` (a universal joint: a hinge about axis a then one about axis b, each of X,
@@ -20,7 +20,7 @@ Gepetto's ``example-parallel-robots`` publishes each robot as ``robot.urdf`` (a 
 :func:`read` checks every key (a :class:`~h4pin.errors.MalformedURDFError` naming the key and
 what it holds); :func:`build` makes the Pinocchio model and closures the way the toolbox's
 ``completeRobotLoader`` does (the conversions applied before the closures are built). One reader
-for the package: :class:`h4pin.elastic.Mechanism` and :mod:`h4pin.io.interop` use it.
+for the package: :class:`h4pin.mechanism.Mechanism` and :mod:`h4pin.io.interop` use it.
 """
 
 from __future__ import annotations
@@ -117,9 +117,9 @@ def parse(content: Any, path: str = "sidecar") -> Sidecar:
 
 def _beams(path: str, value: Any) -> dict[str, Any]:
     """The ``beams:`` key: ``{link: {E:, G:, d:}}`` (a round section) or ``{link: {E:, G:, A:, Iy:,
-    Iz:, J:}}``, each with an optional ``to:`` and ``carry:``; as :class:`h4pin.elastic.Beam`."""
-    from h4pin.elastic.beams import Beam
+    Iz:, J:}}``, each with an optional ``to:`` and ``carry:``; as :class:`h4pin.mechanism.Beam`."""
     from h4pin.errors import ParameterError
+    from h4pin.mechanism.beams import Beam
 
     if value is None or value == {}:
         return {}

@@ -11,8 +11,8 @@ and has no option to choose. This module runs the same :class:`ZMQWebSocketBridg
   viewer (SIGKILL) leaves no server behind;
 * SIGTERM, SIGHUP and SIGINT stop it cleanly.
 
-It prints ``zmq_url=...`` and ``web_url=...`` like meshcat's server, so :class:`h4pin.io.viewer.Scene`
-reads them the same way. Run by :func:`start`, not by hand (``python -m h4pin.io.meshcat_server``).
+It prints ``zmq_url=...`` and ``web_url=...`` like meshcat's server, so :class:`h4pin.mechanism.scene.Scene`
+reads them the same way. Run by :func:`start`, not by hand (``python -m h4pin.mechanism.meshcat_server``).
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def start(host: str = LOCALHOST) -> tuple[subprocess.Popen, str, str]:
     """
     check_host(host)
     err = tempfile.TemporaryFile()
-    proc = subprocess.Popen([sys.executable, "-u", "-m", "h4pin.io.meshcat_server", "--host", host,
+    proc = subprocess.Popen([sys.executable, "-u", "-m", "h4pin.mechanism.meshcat_server", "--host", host,
                              "--parent", str(os.getpid())],
                             stdout=subprocess.PIPE, stderr=err, stdin=subprocess.DEVNULL, start_new_session=True)
     try:

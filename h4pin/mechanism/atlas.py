@@ -1,12 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Motor-space atlas of any closed-loop robot (:class:`h4pin.elastic.Mechanism`).
+"""Motor-space atlas of any closed-loop robot (:class:`h4pin.mechanism.Mechanism`).
 
 The H4's atlas (:mod:`h4pin.studies.atlas`) maps its workspace; a robot read from its own files
 has no closed forms, so its atlas is a grid over its motor positions (one axis per motor of
 ``Mechanism.actuated``, rad or m). At each grid point the loops are closed by
-continuation (:meth:`~h4pin.elastic.Mechanism.assemble`, from an assembled neighbour, else from the
+continuation (:meth:`~h4pin.mechanism.Mechanism.assemble`, from an assembled neighbour, else from the
 reference assembly), then the compliance of the output frame
-(:meth:`~h4pin.elastic.Mechanism.compliance`, the compiled generic path over each block) gives:
+(:meth:`~h4pin.mechanism.Mechanism.compliance`, the compiled generic path over each block) gives:
 
 * ``compliance_max`` (m/N): the worst-direction translational compliance, the largest eigenvalue
   of the symmetric part of the 3x3 translational block C_tt (a unit force along its axis moves
@@ -17,7 +17,7 @@ reference assembly), then the compliance of the output frame
 * ``position`` (m, dim ``xyz``): the output frame's origin, and ``configuration`` (dim
   ``coordinate``): the assembled configuration (nq,), Pinocchio's order;
 * with ``frequency=True``, ``first_frequency`` (Hz): the lowest natural frequency with the
-  model's inertias and the same springs (:meth:`~h4pin.elastic.Mechanism.modes`);
+  model's inertias and the same springs (:meth:`~h4pin.mechanism.Mechanism.modes`);
 * ``status`` (int8, :data:`STATUS_NAMES`): 0 where all the above hold; 1 where the loops do not
   close (or a joint leaves its range), 2 where a motion strains no spring (a singular
   configuration, or too few springs), 3 where the compliance holds but the frequency does not
@@ -30,13 +30,13 @@ Springs (:func:`default_springs`): the file's own joint springs when it has them
 joint stiffness of 0 leaves the passive joints free, which suits a parallel robot whose passive
 joints all close loops, and leaves most others unrestrained: status 2).
 
-The store is the H4 atlas's format family: an :class:`xarray.Dataset` (one dim per motor, named
-by its joint) written by :func:`h4pin.studies.atlas.save` to ``.nc`` or ``.zarr``; a ``.zarr``
-output streams block by block into the H4 atlas's partial store (same lock, same fingerprint
-rule) and a killed run resumes from the blocks it finished (:func:`stream`). As the H4's atlas,
+The result is an :class:`xarray.Dataset` (one dim per motor, named by its joint) in the store
+every atlas shares (:mod:`h4pin.mechanism.store`): saved to ``.nc`` or ``.zarr``; a ``.zarr``
+output streams block by block into a partial store (a lock, a fingerprint) and a killed run
+resumes from the blocks it finished (:func:`stream`). As the H4's workspace atlas,
 it runs in one process (``threads`` for the compliance of a block): the continuation makes each
 block start from its neighbours', so the blocks are not independent tasks for Dask workers.
-:func:`plot` draws the maps. See ``docs/mechanisms.md``.
+:func:`h4pin.plots.atlas_maps` draws the maps. See ``docs/mechanisms.md``.
 """
 
 from __future__ import annotations
@@ -45,10 +45,7 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
 import re
-import shutil
-import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -59,15 +56,14 @@ from tqdm import tqdm
 
 from h4pin.extras import require
 
-require("xarray", extra="studies", what="the motor-space atlas (h4pin.studies.motor_atlas)")
+require("xarray", extra="studies", what="the motor-space atlas (h4pin.mechanism.atlas)")
 import xarray as xr  # noqa: E402
 
-from h4pin import files, limits  # noqa: E402
-from h4pin.elastic.engine import UnassembledError  # noqa: E402
-from h4pin.elastic.mechanism import Mechanism, checked_springs  # noqa: E402
+from h4pin import limits  # noqa: E402
 from h4pin.errors import H4Error, ParameterError  # noqa: E402
-from h4pin.files import clean_stale, make_readable, save_figure, tmp_prefix  # noqa: E402
-from h4pin.studies import atlas as h4_atlas  # noqa: E402
+from h4pin.mechanism import store  # noqa: E402
+from h4pin.mechanism.core import Mechanism, checked_springs  # noqa: E402
+from h4pin.mechanism.engine import UnassembledError  # noqa: E402
 
 #: The verdict of a grid point (``status``), by code.
 STATUS_NAMES = ("ok", "unassembled", "unrestrained", "no frequency")
@@ -209,15 +205,6 @@ def _dim(name: str) -> str:
     return dim
 
 
-def _layout(shape: tuple[int, ...], chunk: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Blocks of whole rows of the last motor (:func:`h4pin.studies.atlas.block_layout` on the last two
-    motors): the block shape and the number of blocks along each dim."""
-    ny = shape[-2] if len(shape) > 1 else 1
-    b4, _ = h4_atlas.block_layout((1, 1, ny, shape[-1]), chunk)
-    block = (*(1,) * (len(shape) - 2), *b4[4 - min(len(shape), 2):])
-    return block, tuple(-(-s // b) for s, b in zip(shape, block, strict=True))
-
-
 def _block_points(b: int, shape: tuple[int, ...], block: tuple[int, ...], grid: tuple[int, ...]) -> list[tuple]:
     """Grid indices of block ``b`` in continuation order (serpentine: every other row reversed)."""
     corner = [i * s for i, s in zip(np.unravel_index(b, grid), block, strict=True)]
@@ -254,7 +241,7 @@ def _fingerprint(mech: Mechanism, axes: dict[str, np.ndarray], setup: Setup, blo
 def _setup(mech: Mechanism, output: str, springs: Mapping[str, Any] | None, locked: Iterable[str],
            frequency: bool) -> Setup:
     if not isinstance(mech, Mechanism):
-        raise ParameterError(f"mechanism: an h4pin.elastic.Mechanism, got {type(mech).__name__}")
+        raise ParameterError(f"mechanism: an h4pin.mechanism.Mechanism, got {type(mech).__name__}")
     if not isinstance(output, str) or not mech.model.existFrame(output):
         raise ParameterError(f"output: no frame {output!r} in {mech.name}")
     if not isinstance(frequency, bool):
@@ -274,7 +261,7 @@ def _plan(mech: Mechanism, output: str, axes: Any, springs: Any, locked: Iterabl
     reference = mech.assemble()
     grid_axes = motor_axes(mech, axes, reference)
     shape = tuple(len(v) for v in grid_axes.values())
-    block, grid = _layout(shape, chunk)
+    block, grid = store.block_layout(shape, chunk)
     _check_memory(mech, shape, chunk, frequency, streamed)
     return setup, reference, grid_axes, shape, block, grid
 
@@ -295,17 +282,17 @@ def _template(mech: Mechanism, axes: dict[str, np.ndarray], setup: Setup, data: 
     out = {q: ((*dims, *_EXTRA.get(q, ())), data[q], {"units": known[q][0], "long_name": known[q][1]})
            for q in known if q in data}
     out["status"] = (dims, data["status"], {
-        "units": "1", "long_name": "verdict (h4pin.studies.motor_atlas.STATUS_NAMES)",
+        "units": "1", "long_name": "verdict (h4pin.mechanism.atlas.STATUS_NAMES)",
         "flag_values": np.arange(len(STATUS_NAMES), dtype=np.int8),
         "flag_meanings": " ".join(s.replace(" ", "_") for s in STATUS_NAMES)})
     coords = {d: (d, v, {"units": "rad or m", "joint": m}) for d, (m, v) in zip(dims, axes.items(), strict=True)}
-    # "h4pin": "atlas" is what h4pin.studies.atlas.check_out recognises (an atlas may be replaced).
+    # "h4pin": "atlas" is what h4pin.mechanism.store.check_out recognises (an atlas may be replaced).
     return xr.Dataset(out, coords=coords, attrs={
         "title": f"motor-space atlas of {mech.name}", "h4pin": "atlas", "kind": "mechanism",
         "mechanism": mech.name, "output": setup.output, "motors": json.dumps(list(axes)),
         "springs": json.dumps(setup.springs, default=lambda v: np.asarray(v, float).tolist()),
         "locked": json.dumps(list(setup.locked)),
-        "reference": "h4pin.elastic.Mechanism.compliance (world axes), .assemble, .modes"})
+        "reference": "h4pin.mechanism.Mechanism.compliance (world axes), .assemble, .modes"})
 
 
 def _empty(mech: Mechanism, shape: tuple[int, ...], frequency: bool, full: Any = np.full) -> dict[str, Any]:
@@ -429,7 +416,7 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
         return stream(mech, output, axes, springs, locked, out=out, frequency=frequency, chunk=chunk,
                       threads=threads, progress=progress)
     if out is not None:
-        h4_atlas.check_out(out)
+        store.check_out(out)
     setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
                                                             False)
     data = _empty(mech, shape, frequency)
@@ -446,7 +433,7 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
             bar.update(len(points))
     ds = _template(mech, grid_axes, setup, data)
     if out is not None:
-        h4_atlas.save(ds, out)
+        store.save(ds, out)
     return ds
 
 
@@ -454,7 +441,7 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
            springs: Mapping[str, Any] | None = None, locked: Iterable[str] = (), *, out: str | Path,
            frequency: bool = False, chunk: int = CHUNK, threads: int | None = None, progress: bool = True,
            stop_after: int | None = None) -> xr.Dataset | None:
-    """:func:`atlas` streamed into the zarr store ``out``, as :func:`h4pin.studies.atlas.stream`:
+    """:func:`atlas` streamed into the zarr store ``out`` (:func:`h4pin.mechanism.store.partial`):
     the arrays made first in the partial store beside ``out`` (its lock and fingerprint: the robot,
     grid, setup and blocks), each block written and flagged done as it is computed, the store
     renamed to ``out`` when whole; a killed run resumes from the blocks done (their assembled
@@ -465,21 +452,15 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
     Returns:
         The store at ``out``, opened lazily.
     """
-    require("zarr", extra="studies", what="writing .zarr atlases")
     import dask.array as da
 
-    path = h4_atlas.check_out(out, "out")
-    if path.suffix != ".zarr":
-        raise ParameterError(f"out {path}: a streamed atlas is a .zarr store")
+    path = store.check_stream(out, "out")
     setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
                                                             True)
     lazy = _empty(mech, shape, frequency, lambda s, v: da.full(s, v, chunks=(*block, *s[len(shape):])))
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
-    with files.store_lock(path, "atlas"):
-        h4_atlas.check_out(path, "out")  # again, under the lock: another run may have written it meanwhile
-        clean_stale(path)
-        group = h4_atlas.open_partial(path, _template(mech, grid_axes, setup, lazy),
-                                      _fingerprint(mech, grid_axes, setup, block), math.prod(grid))
+    with store.partial(path, _template(mech, grid_axes, setup, lazy), _fingerprint(mech, grid_axes, setup, block),
+                       math.prod(grid)) as group:
         return _fill(mech, path, group, grid_axes, setup, shape, block, grid, reference, frequency, threads,
                      progress, stop_after)
 
@@ -489,7 +470,7 @@ def _fill(mech: Mechanism, path: Path, group: Any, grid_axes: dict[str, np.ndarr
           frequency: bool, threads: int | None, progress: bool, stop_after: int | None) -> xr.Dataset | None:
     """The blocks :func:`stream` has not done yet, into its partial store, then the store moved
     into place (the caller holds the store's lock)."""
-    done = group[h4_atlas.DONE]
+    done = group[store.DONE]
     flags = done[:]
     known = np.zeros(shape, bool)
     for b in np.flatnonzero(flags):
@@ -515,87 +496,12 @@ def _fill(mech: Mechanism, path: Path, group: Any, grid_axes: dict[str, np.ndarr
             flags[b] = True
             done[:] = flags  # after the block's values: a block killed half-way is computed again
             bar.update(len(points))
-    partial = h4_atlas.partial_path(path)
-    shutil.rmtree(partial / h4_atlas.DONE)
-    make_readable(partial)
-    with tempfile.TemporaryDirectory(prefix=tmp_prefix(path), dir=path.parent) as tmp:
-        if path.exists():
-            os.replace(path, Path(tmp) / "old")
-        os.replace(partial, path)
-    return h4_atlas.opened(path)
+    store.finish(path)
+    return store.opened(path)
 
 
 def motors(ds: xr.Dataset) -> list[str]:
     """The motor joints of a motor-space atlas, in the order of its dims."""
     if ds.attrs.get("kind") != "mechanism" or "motors" not in ds.attrs:
-        raise ParameterError("not a motor-space atlas (h4pin.studies.motor_atlas): no 'motors' attribute")
+        raise ParameterError("not a motor-space atlas (h4pin.mechanism.atlas): no 'motors' attribute")
     return json.loads(ds.attrs["motors"])
-
-
-def _panels(ds: xr.Dataset, max_panels: int) -> list[dict[str, int]]:
-    """Index selections of the motors past the first two, one per panel (at most ``max_panels``,
-    evenly chosen): each panel is a map over the first two motors."""
-    dims = list(ds.status.dims)
-    rest = [ds.sizes[d] for d in dims[2:]]
-    slices = list(np.ndindex(*rest)) if rest else [()]
-    if len(slices) > max_panels:
-        slices = [slices[i] for i in np.linspace(0, len(slices) - 1, max_panels).round().astype(int)]
-    return [dict(zip(dims[2:], s, strict=True)) for s in slices]
-
-
-def plot(ds: xr.Dataset, folder: str | Path, prefix: str = "atlas_", max_panels: int = 4) -> list[Path]:
-    """One PNG per quantity in ``folder``, ``{prefix}{quantity}.png``: ``compliance_max`` (um/N,
-    log colours), ``first_frequency`` (Hz) when the atlas has it, and ``status``. Each figure maps
-    the quantity over the first two motors (a curve over the motor for a one-motor robot), one
-    panel per slice of the other motors (at most ``max_panels``, evenly chosen); colours span the
-    1st to 99th percentile (compliance grows without bound near a singularity), and the black
-    contour bounds the points of status 0."""
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-
-    names = motors(ds)
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise ParameterError(f"folder {str(folder)!r} does not exist")
-    dims = list(ds.status.dims)
-    panels = _panels(ds, max_panels)
-    written = []
-    for q in ("compliance_max", *(("first_frequency",) if "first_frequency" in ds else ()), "status"):
-        factor, unit, log = h4_atlas.DISPLAY[q] if q != "status" else (1.0, "", False)
-        fig = Figure(figsize=(4.2 * len(panels) + 1.0, 4.0), layout="constrained")
-        axs = fig.subplots(1, len(panels), squeeze=False)[0]
-        values = [ds[q].isel(p).values.astype(float) * factor for p in panels]
-        finite = np.concatenate([v[np.isfinite(v)] for v in values])
-        vmin, vmax = (float(v) for v in np.percentile(finite, [1, 99])) if finite.size else (0.0, 1.0)
-        if q == "status":
-            vmin, vmax = -0.5, len(STATUS_NAMES) - 0.5
-        mesh = None
-        for ax, p, v in zip(axs, panels, values, strict=True):
-            x = ds[dims[-1] if len(dims) == 1 else dims[1]].values
-            if len(dims) == 1:
-                ax.plot(x, v, "o-" if q == "status" else "-", color="C0")
-                ax.set_ylabel(f"{q} [{unit}]" if unit else q)
-                if log and vmin > 0:
-                    ax.set_yscale("log")
-            else:
-                y = ds[dims[0]].values
-                norm = LogNorm(vmin, vmax) if log and vmin > 0 else None
-                mesh = ax.pcolormesh(x, y, v, shading="nearest", cmap="viridis", norm=norm,
-                                     **({} if norm else {"vmin": vmin, "vmax": vmax}))
-                ok = (ds.status.isel(p).values == OK).astype(float)
-                if 0 < ok.sum() < ok.size and len(x) > 1 and len(y) > 1:
-                    ax.contour(x, y, ok, levels=[0.5], colors="k", linewidths=1.2)
-                ax.set_ylabel(f"{names[0]} [rad or m]")
-            ax.set_xlabel(f"{names[-1] if len(dims) == 1 else names[1]} [rad or m]")
-            ax.set_title(", ".join(f"{names[dims.index(d)]} = {float(ds[d].values[i]):.3g}" for d, i in p.items())
-                         or ds.attrs.get("mechanism", ""), fontsize=8)
-        if mesh is not None:
-            label = f"{q} [{unit}]" if unit else q
-            if q == "status":
-                label = "status: " + ", ".join(f"{c} {s}" for c, s in enumerate(STATUS_NAMES))
-            fig.colorbar(mesh, ax=list(axs), shrink=0.9).set_label(label, fontsize=8)
-        what = {"compliance_max": "worst-direction compliance", "first_frequency": "first natural frequency"}.get(
-            q, "verdict")
-        fig.suptitle(f"{ds.attrs.get('mechanism', '')} at {ds.attrs.get('output', '')}: {what}", fontsize=9)
-        written.append(save_figure(fig, folder / f"{prefix}{q}.png", dpi=110))
-    return written
