@@ -3,7 +3,7 @@
 kinematics as MuJoCo's for random configurations (a body's several joints split back from
 Pinocchio's composite joint, quaternions reordered), the reference configuration from the first
 keyframe, the ranges and springs as MuJoCo compiles them (degrees by default), motors on every
-joint of a body, and couplings or motors it cannot represent refused by name."""
+joint of a body, joint couplings as constraints, and motors it cannot represent refused by name."""
 
 from __future__ import annotations
 

@@ -202,20 +202,28 @@ class Mechanism:
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
         """An MJCF file as MuJoCo means it: the tree and its ``connect``/``weld`` equalities as
         closures (Pinocchio 4's reader; a body's several joints, which that reader merges into
-        one composite joint, are split back into the file's joints, each with its name), the
+        one composite joint, are split back into the file's joints, each with its name; a fixed
+        root body's placement on the world, which it drops, put back), its ``<equality><joint>``
+        couplings as :attr:`couplings` (:class:`~h4pin.elastic.couplings.JointCoupling`), the
         joints of its ``<actuator>`` elements as the motors (or ``actuated``), and from MuJoCo's
         own compiler: the reference configuration (the first keyframe, else ``qpos0``: each
-        joint's ``ref``), the joints' ranges as the file states them, and the joints'
-        ``stiffness`` as :attr:`springs` (``springref``: :attr:`spring_rest`). Pinocchio's
-        configuration is MuJoCo's ``qpos`` (a ball's or free joint's quaternion reordered).
+        joint's ``ref``), the joints' ranges as the file states them, the joints' ``stiffness``
+        as :attr:`springs` (``springref``: :attr:`spring_rest`), and every body's mass, centre of
+        mass and inertia. Pinocchio's configuration is MuJoCo's ``qpos`` (a ball's or free
+        joint's quaternion reordered); world positions are MuJoCo's (``xpos``, ``site_xpos``).
 
         Raises:
             MissingExtraError: Pinocchio < 4 (its MJCF reader gives no closures), or MuJoCo is
                 not installed (the ``mujoco`` extra).
-            MalformedURDFError: MuJoCo or Pinocchio cannot read the file (its message), or the
-                readers disagree on the closures.
-            UnsupportedFeatureError: joint or tendon couplings (``<equality><joint>``,
-                ``<tendon>``), an actuator not on a joint: refused by name, never dropped.
+            MalformedURDFError: MuJoCo or Pinocchio cannot read the file (its message), the
+                readers disagree on the closures, or a file value h4pin would drop (a negative or
+                non-finite joint ``stiffness`` or ``springref``, a ``range`` not finite or
+                reversed, a first keyframe's ``qpos`` of another length than the model's): the
+                element and attribute named.
+            UnsupportedFeatureError: tendon equalities, an actuator not on a joint (unless
+                ``actuated`` is given), a second body with joints on the world (Pinocchio's reader
+                reads one tree), a body the two readers place differently: refused by name, never
+                dropped.
             ParameterError: a motor on a joint the model lacks.
         """
         from h4pin.mechanism import mjcf_reader
