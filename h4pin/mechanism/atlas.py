@@ -62,7 +62,8 @@ import xarray as xr  # noqa: E402
 from h4pin import limits  # noqa: E402
 from h4pin.errors import H4Error, ParameterError  # noqa: E402
 from h4pin.mechanism import store  # noqa: E402
-from h4pin.mechanism.core import Mechanism, checked_springs  # noqa: E402
+from h4pin.mechanism.arguments import checked_springs  # noqa: E402
+from h4pin.mechanism.core import Mechanism  # noqa: E402
 from h4pin.mechanism.engine import UnassembledError  # noqa: E402
 
 #: The verdict of a grid point (``status``), by code.

@@ -35,12 +35,10 @@ from h4pin._compat import constraint_calc
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
 from h4pin.inputs import check_choice
 from h4pin.lookup import finite_configuration, model_configuration
-from h4pin.mechanism import assembly, batch, engine
-from h4pin.mechanism.arguments import items, joint_names
+from h4pin.mechanism import assembly, batch, engine, loaded
+from h4pin.mechanism.arguments import joint_names, locked_of, outputs_of, springs_of
 from h4pin.mechanism.couplings import JointCoupling
 from h4pin.mechanism.engine import (
-    FrameOutput,
-    JointOutput,
     Modes,
     admissible_basis,
     undamped_modes,
@@ -89,7 +87,7 @@ def _closures(model: pin.Model, constraint_models: Iterable[Any]) -> Any:
     return out
 
 
-class Mechanism:
+class Mechanism(loaded.UnderLoad):
     """A closed-loop robot: a Pinocchio tree, its loop closures and its actuated joints (module
     docstring). Immutable; the model and closures are copies of what was given, a ``pin.Data``
     is made per calling thread.
@@ -191,12 +189,17 @@ class Mechanism:
     def from_elastic(cls, em: Any) -> Mechanism:
         """An elastic H4 (:func:`h4pin.elastic.elastic_model`) as a mechanism: its tree, closures
         and four actuators, with the inertias :func:`h4pin.modes` uses (each forearm on its
-        actuator's spring): ``compliance(q, em.stiffness, ["D"], locked=em.locked)`` and
-        :meth:`modes` give the elastic model's numbers through the generic calls. (Nothing of
-        the H4 is imported here: ``em`` gives its own mass model.)"""
-        if not all(hasattr(em, a) for a in ("mass_model", "constraint_models", "locked", "stiffness")):
+        actuator's spring), its virtual joints' springs as the mechanism's own (as a beam's:
+        :attr:`beam_springs`, held in a rigid assembly) and the H4's rigid configurations lifted
+        (:meth:`configuration`): ``compliance(q, {}, ["D"], locked=em.locked)`` and :meth:`modes`
+        give the elastic model's numbers through the generic calls. (Nothing of the H4 is
+        imported here: ``em`` gives its own mass model.)"""
+        if not all(hasattr(em, a) for a in ("mass_model", "constraint_models", "locked", "stiffness", "q_index")):
             raise ParameterError(f"em: an h4pin.elastic.ElasticH4 (h4pin.elastic_model(h4)), got {type(em).__name__}")
-        return cls(em.mass_model(), em.constraint_models, em.locked, name="elastic H4")
+        mech = cls(em.mass_model(), em.constraint_models, em.locked, name="elastic H4")
+        object.__setattr__(mech, "beam_springs", dict(em.stiffness))
+        object.__setattr__(mech, "_lift", (np.asarray(em.q_index), len(em.q_index)))
+        return mech
 
     @classmethod
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
@@ -342,9 +345,9 @@ class Mechanism:
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
             TooLargeError: a batch over the memory or time limit.
         """
-        stiff = _springs(self, springs)
-        lock = _locked(self, locked, stiff, free_root)
-        outs = _outputs(self, outputs)
+        stiff = springs_of(self, springs)
+        lock = locked_of(self, locked, stiff, free_root)
+        outs = outputs_of(self, outputs)
         method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         out = batch.compliance(self, Q, one, stiff, outs, lock, method, threads)
@@ -365,8 +368,8 @@ class Mechanism:
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
         """
-        stiff = _springs(self, springs)
-        lock = _locked(self, locked, stiff, free_root)
+        stiff = springs_of(self, springs)
+        lock = locked_of(self, locked, stiff, free_root)
         method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         if one:
@@ -374,38 +377,6 @@ class Mechanism:
         freq = batch.frequencies(self, Q, stiff, lock, payload, method, threads,
                                  lambda x: _modes_one(self, x, stiff, lock, payload).frequencies)
         return Modes(freq, np.sum(np.isfinite(freq), axis=1), np.zeros(len(freq), dtype=np.int8), payload)
-
-
-def checked_springs(mech: Mechanism, springs: Mapping[Any, Any], locked: Iterable[Any] = (),
-                    free_root: bool = False) -> tuple[dict[str, Any], tuple[str, ...]]:
-    """``(springs, locked)`` of a :meth:`Mechanism.compliance` or :meth:`Mechanism.modes` call,
-    checked as the call checks them (names, values, a joint both locked and sprung), by name."""
-    stiff = _springs(mech, springs)
-    return stiff, _locked(mech, locked, stiff, free_root)
-
-
-def _springs(mech: Mechanism, springs: Mapping[Any, Any]) -> dict[str, Any]:
-    """The checked springs of a call, the beams' included."""
-    if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
-        raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
-    names = joint_names(mech.model, list(springs), "springs")
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
-    return {**mech.beam_springs, **dict(zip(names, springs.values(), strict=True))}
-
-
-def _locked(mech: Mechanism, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
-    """The locked joints of a call: ``locked``, and the free-flyer roots unless freed or sprung."""
-    if not isinstance(free_root, bool):
-        raise ParameterError(f"free_root: True or False, got {free_root!r}")
-    names = joint_names(mech.model, locked, "locked")
-    both = sorted(set(names) & set(springs))
-    if both:
-        raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
-    if not free_root:
-        names = names + tuple(n for n in mech.free_flyers if n not in names and n not in springs)
-    return names
 
 
 def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...],
@@ -454,28 +425,6 @@ def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, spr
             "beam_springs": {}, "_lift": None, "free_flyers": roots}
 
 
-def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
-    outputs = items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
-    out = []
-    for o in outputs:
-        if isinstance(o, str):
-            if not mech.model.existFrame(o):
-                raise ParameterError(f"outputs: no frame {o!r} in {mech.name}")
-            out.append(FrameOutput(o))
-        elif isinstance(o, FrameOutput):
-            if not mech.model.existFrame(o.frame):
-                raise ParameterError(f"outputs: no frame {o.frame!r} in {mech.name}")
-            out.append(o)
-        elif isinstance(o, JointOutput):
-            joint_names(mech.model, [o.joint], "outputs")
-            out.append(o)
-        else:
-            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
-    if not out:
-        raise ParameterError("outputs: give at least one frame")
-    return out
-
-
 def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     """:meth:`Mechanism.with_beams`."""
     from h4pin.mechanism import beams as bm
@@ -503,4 +452,4 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     return out
 
 
-__all__ = ["Mechanism", "checked_springs"]
+__all__ = ["Mechanism"]
