@@ -372,3 +372,80 @@ def test_refusals_of_the_state_and_the_size(five_bar, monkeypatch):
         mech.equilibrium(np.tile(q, (10_000, 1)), springs, {"effector": [1.0, 0, 0]})
     with pytest.raises(ConvergenceError, match="targets"):
         mech.compensate({"effector": [10.0, 0.0, 0.0]}, springs, gravity=True, iterations=3)
+
+
+# ---------------------------------------------------------------- the page's numbers
+def _table(section: str) -> list[list[str]]:
+    text = (Path(__file__).resolve().parent.parent / "docs" / "loaded.md").read_text(encoding="utf-8")
+    body = text.split(section, 1)[1].split("\n\n", 2)[1]
+    return [[c.strip() for c in line.strip("|").split("|")] for line in body.splitlines()[2:]]
+
+
+def _number(cell: str) -> float:
+    return float(cell.replace("−", "-").replace("%", "").strip())
+
+
+def test_the_pages_numbers_are_the_codes(elastic_h4):
+    """docs/loaded.md's tables against the code: the H4's sag and K_tt change at Table II's pose
+    (own weight, 0.5 and 2 kg), and the cantilever's critical loads (1 to 4 segments)."""
+    from h4pin.studies import loaded
+
+    h4, _ = elastic_h4
+    rows = _table("At Table II's pose (all actuators at 45°):")
+    assert [r[0] for r in rows] == ["0 kg (own weight)", "0.5 kg", "2 kg"]
+    for row, kg in zip(rows, (0.0, 0.5, 2.0), strict=True):
+        s = loaded.sag(h4, centre_pose(h4), kg)
+        d = s.displacement[0]
+        assert [_number(v) for v in row[1].split(",")] == [round(v * 1e6, 1) + 0.0 for v in d[:3]]
+        assert _number(row[2]) == round(d[4] * 1e6, 1)
+        assert _number(row[3]) == round(s.change[0] * 100, 3)
+    rows = _table("= 339.1 N):")
+    length, d, e = 0.5, 0.01, 70e9
+    for row in rows[:4]:
+        n = int(row[0])
+        rod = Beam(**{**Beam.circle(d, e, 0.4 * e, to="tip").__dict__, "segments": n})
+        mech = _cantilever(length, rod)
+        crit = mech.critical_load(mech.assemble(), {}, {"tip": [-1.0, 0.0, 0.0]}, max_factor=1e6)
+        assert _number(row[1]) == round(crit.factor, 1)
+
+
+# ---------------------------------------------------------------- the commands and the viewer
+def test_the_atlas_maps_the_sag_where_the_equilibrium_puts_it(five_bar):
+    """A motor-space atlas with gravity=True: its sag at each grid point is the output's
+    displacement of Mechanism.equilibrium called there directly."""
+    from h4pin.mechanism import atlas as motor_atlas
+
+    mech, _, springs = five_bar
+    ds = motor_atlas.atlas(mech, "effector", {m: (-0.05, 0.05, 2) for m in mech.actuated}, springs, gravity=True,
+                           payload=0.2, progress=False)
+    assert int((ds.status == motor_atlas.OK).sum()) == 4 and ds.attrs["gravity"] == 1
+    for i in range(2):
+        for j in range(2):
+            q = ds.configuration.values[i, j]
+            want = mech.equilibrium(q, springs, gravity=True, payload=("effector", Payload(0.2))).displacement(
+                "effector")[:3]
+            np.testing.assert_allclose(ds.sag.values[i, j], want, rtol=1e-12, atol=1e-15)
+    with pytest.raises(ParameterError, match="only with gravity"):
+        motor_atlas.atlas(mech, "effector", {m: (0.0, 0.0, 1) for m in mech.actuated}, springs, payload=0.2,
+                          progress=False)
+
+
+def test_table2_and_view_show_the_loaded_robot(monkeypatch, capsys, tmp_path, elastic_h4):
+    """`h4pin table2 --gravity --payload 2` prints D's sag of the elastic model's equilibrium;
+    `h4pin view --gravity` draws the loaded equilibrium and states its true |dD|; a payload without
+    gravity or a mode is refused in one line."""
+    from conftest import run_cli_in_process
+
+    h4, em = elastic_h4
+    eq = em.mechanism.equilibrium(em.configuration(centre_pose(h4)), {}, gravity=True, payload=("D", Payload(2.0)))
+    d = eq.displacement("D") * 1e6
+    code, out, err = run_cli_in_process(["table2", "--gravity", "--payload", "2"], monkeypatch, capsys)
+    assert code == 0, err
+    assert f"D sags by ({d[0]:.1f}, {d[1]:.1f}, {d[2]:.1f}) um" in out
+    code, out, err = run_cli_in_process(["view", "--gravity", "--payload", "2", "--out", str(tmp_path / "v.html")],
+                                        monkeypatch, capsys)
+    assert code == 0, err
+    assert "loaded equilibrium under its weight and 2 kg at D" in out
+    assert f"true |dD| = {np.linalg.norm(d[:3]):.1f} um" in out
+    code, _, err = run_cli_in_process(["table2", "--payload", "2"], monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1 and "--gravity" in err
