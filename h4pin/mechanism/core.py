@@ -207,7 +207,7 @@ class Mechanism(loaded.UnderLoad):
         closures (Pinocchio 4's reader; a body's several joints, which that reader merges into
         one composite joint, are split back into the file's joints, each with its name; a fixed
         root body's placement on the world, which it drops, put back), its ``<equality><joint>``
-        couplings as :attr:`couplings` (:class:`~h4pin.elastic.couplings.JointCoupling`), the
+        couplings as :attr:`couplings` (:class:`~h4pin.mechanism.couplings.JointCoupling`), the
         joints of its ``<actuator>`` elements as the motors (or ``actuated``), and from MuJoCo's
         own compiler: the reference configuration (the first keyframe, else ``qpos0``: each
         joint's ``ref``), the joints' ranges as the file states them, the joints' ``stiffness``
