@@ -171,13 +171,23 @@ class Mechanism(loaded.UnderLoad):
         urdf_path = Path(urdf_path)
         side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
         model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
+        if side.gravity is not None:
+            model.gravity = pin.Motion(np.array(side.gravity), np.zeros(3))
         motors = side.motors if actuated is None else actuated
         try:
             names = joint_names(model, motors, f"{side.path}: name_mot")
         except ParameterError as exc:
             raise MalformedURDFError(str(exc)) from None
         ranges = _urdf_ranges(model)
-        mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model), ranges=ranges)
+        try:
+            springs = {n: k for n, k in side.springs.items() if n not in side.elastic}
+            mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model),
+                       ranges=ranges, springs=springs or None)
+            if side.elastic:
+                joint_names(model, side.elastic, "elastic")
+                object.__setattr__(mech, "beam_springs", {n: side.springs[n] for n in side.elastic})
+        except ParameterError as exc:
+            raise MalformedURDFError(f"{side.path}: {exc}") from None
         if side.beams:
             try:
                 return mech.with_beams(side.beams)
@@ -255,6 +265,11 @@ class Mechanism(loaded.UnderLoad):
                 far end or several without ``to``.
         """
         return _with_beams(self, beams)
+
+    def with_model(self, model: pin.Model) -> Mechanism:
+        """The same mechanism (closures, motors, springs, beams, ranges) on ``model``: the same
+        tree, with other joint placements, frames or inertias (a calibrated robot, say)."""
+        return on_model(self, model)
 
     def to_mjcf(self, path: str | Path, springs: Mapping[Any, Any], q: Any = None, **options: Any) -> Path:
         """Write an elastic MuJoCo model, the springs as joint stiffness at rest at q (default
@@ -431,24 +446,49 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
 
     if not isinstance(beams, Mapping) or not beams:
         raise ParameterError(f"beams: a mapping {{link name: h4pin.mechanism.Beam}}, got {beams!r}")
-    model = mech.model
-    d = model.createData()
-    pin.framesForwardKinematics(model, d, mech.reference)
-    ins = [bm.insertion(model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
+    d = mech.model.createData()
+    pin.framesForwardKinematics(mech.model, d, mech.reference)
+    ins = [bm.insertion(mech.model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
     parents = [i.parent for i in ins]
     if len(set(parents)) != len(parents):
         raise ParameterError("beams: two links on one joint; one beam per joint")
-    new_model, new_cms, q_index = engine.insert_joints(model, ins, mech.constraint_models, mech.reference)
+    return inserted(mech, ins, f"{mech.name} with beams")
+
+
+def inserted(mech: Mechanism, insertions: Sequence[Any], name: str, internal: bool = True) -> Mechanism:
+    """A new mechanism with the chains of virtual joints ``insertions``
+    (:func:`h4pin.mechanism.engine.insert_joints`) at the reference configuration, its closures,
+    motors, ranges, springs and couplings carried over; a configuration of ``mech`` is accepted as it
+    is (the new joints at 0). ``internal``: the new joints' springs are the mechanism's own
+    (:attr:`Mechanism.beam_springs`, held in a rigid assembly), as a beam's."""
+    model = mech.model
+    new_model, new_cms, q_index = engine.insert_joints(model, insertions, mech.constraint_models, mech.reference)
     lift = np.zeros(new_model.nq)
     lift[q_index] = mech.reference
     lo, hi = (np.full(new_model.nq, np.nan) for _ in range(2))
     lo[q_index], hi[q_index] = mech.ranges
-    out = Mechanism(new_model, new_cms, mech.actuated, name=f"{mech.name} with beams", reference=lift,
-                    ranges=(lo, hi), springs=mech.springs, couplings=mech.couplings)
-    object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints
-                                             if math.isfinite(j.stiffness)})
-    object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
+    out = Mechanism(new_model, new_cms, mech.actuated, name=name, reference=lift, ranges=(lo, hi),
+                    springs=mech.springs, couplings=mech.couplings)
+    own = {j.name: j.stiffness for i in insertions for j in i.joints if math.isfinite(j.stiffness)}
+    object.__setattr__(out, "beam_springs", {**mech.beam_springs, **own} if internal else dict(mech.beam_springs))
+    previous = mech._lift
+    index = np.asarray(q_index) if previous is None else np.asarray(q_index)[previous[0]]
+    object.__setattr__(out, "_lift", (index, model.nq if previous is None else previous[1]))
     object.__setattr__(out, "spring_rest", dict(mech.spring_rest))
+    return out
+
+
+def on_model(mech: Mechanism, model: pin.Model) -> Mechanism:
+    """:meth:`Mechanism.with_model`."""
+    if not isinstance(model, pin.Model) or model.njoints != mech.model.njoints or list(model.names) != list(
+            mech.model.names) or any(a.shortname() != b.shortname() for a, b in zip(model.joints, mech.model.joints,
+                                                                                     strict=True)):
+        raise ParameterError("model: the same tree as the mechanism's (its joints, names and kinds), other "
+                             "placements or inertias")
+    out = object.__new__(Mechanism)
+    out.__dict__.update(mech.__dict__)
+    object.__setattr__(out, "model", pin.Model(model))
+    object.__setattr__(out, "_local", threading.local())
     return out
 
 

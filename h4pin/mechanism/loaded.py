@@ -162,6 +162,7 @@ class Problem:
         pin.computeJointJacobians(model, d, self.rest)
         self.length = engine.length_scale(model, d)
         self.col = np.where(np.linalg.norm(np.reshape(d.J, (6, model.nv))[3:], axis=0) == 0.0, self.length, 1.0)
+        self._last: tuple[Any, Any] | None = None  # the last reduced tangent (its state, its value)
 
     # -------------------------------------------------------------- evaluations
     def forces(self, q: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -220,7 +221,11 @@ class Problem:
     def reduced(self, q: np.ndarray, s: float, mu: np.ndarray, h: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(N (nv, nz), Hr (nz, nz), H)``: the admissible motions in scaled coordinates (``dq =
-        N z``) and the reduced tangent stiffness, symmetrised (``tangent`` computed if not given)."""
+        N z``) and the reduced tangent stiffness, symmetrised (``tangent`` computed if not given;
+        the last state's kept: asked again at the same state, nothing is recomputed)."""
+        key = (q.tobytes(), float(s), np.asarray(mu).tobytes())
+        if h is None and self._last is not None and self._last[0] == key:
+            return self._last[1]
         _, a = self.constraints(q)
         if h is None:
             h = self.tangent(q, s, mu)
@@ -235,7 +240,9 @@ class Problem:
         n = np.zeros((self.model.nv, basis.shape[1]))
         n[free] = self.col[free][:, None] * basis
         hr = n.T @ h @ n
-        return n, 0.5 * (hr + hr.T), h
+        out = (n, 0.5 * (hr + hr.T), h)
+        self._last = (key, out)
+        return out
 
     # -------------------------------------------------------------- Newton
     def newton(self, q: np.ndarray, s: float, mu: np.ndarray, shift: bool = False
@@ -245,13 +252,14 @@ class Problem:
         search on the residual: a descent to a stable state from beside an unstable one)."""
         model = self.model
         free = np.flatnonzero(self.free)
-        last = math.inf
+        last, h = math.inf, None
         for _ in range(ITERATIONS * (3 if shift else 1)):
             r, _ = self.forces(q, s)
             c, a = self.constraints(q)
-            h = self.tangent(q, s, mu)
-            n, _, _ = self.reduced(q, s, mu, h)
-            hr = n.T @ h @ n  # not symmetrised: a dead torque's tangent is not symmetric
+            if h is None or shift:  # modified Newton: the tangent kept while the steps shrink ten-fold
+                h = self.tangent(q, s, mu)
+                n, _, _ = self.reduced(q, s, mu, h)
+                hr = n.T @ h @ n  # not symmetrised: a dead torque's tangent is not symmetric
             af = a[:, free]
             dq = np.zeros(model.nv)
             if af.shape[0]:
@@ -277,6 +285,8 @@ class Problem:
             if size <= STEP_TOL or (size < 1e-10 and size >= 0.5 * last):  # done, or at round-off
                 c, _ = self.constraints(q)
                 return q, mu, bool(np.max(np.abs(c), initial=0.0) <= 1e-11)
+            if size > 0.1 * last:  # slow: a new tangent next step
+                h = None
             last = size
         return q, mu, False
 
@@ -467,6 +477,18 @@ def solve(p: Problem, target: float = 1.0, *, stop_at_critical: bool = False) ->
                                  "stiffness becomes singular there and no stable state is near)", star, eq)
         (q, mu), s = branch, s1
     return _equilibrium(p, q, s, mu, True, tuple(crossed)), first
+
+
+def warm(p: Problem, start: np.ndarray, mu: np.ndarray) -> Equilibrium | None:
+    """The equilibrium at the whole load by Newton from ``start`` (a neighbouring problem's
+    equilibrium: a calibration's previous parameters), or None when it does not converge to a
+    stable state within :data:`MAX_MOVE` of ``start`` (then :func:`solve`, from the rest state)."""
+    q, mu, ok = p.newton(start, 1.0, mu)
+    if not ok or float(np.max(np.abs(pin.difference(p.model, start, q) / p.col))) > MAX_MOVE:
+        return None
+    if not p.stability(q, 1.0, mu)[0] > STABLE_TOL:
+        return None
+    return _equilibrium(p, q, 1.0, mu, True, ())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -689,4 +711,4 @@ class UnderLoad:
 
 
 __all__ = ["Compensation", "CriticalLoad", "Equilibrium", "LimitLoadError", "Loads", "Problem", "UnderLoad",
-           "compensate", "critical", "problem", "solve"]
+           "compensate", "critical", "problem", "solve", "warm"]
