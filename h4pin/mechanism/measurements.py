@@ -4,11 +4,12 @@
 saw markers on the robot, and the known loads; read from and written to CSV and NumPy files.
 
 The CSV layout (one row a sample, a header of column names; lines starting with ``#`` are
-comments): ``q.<joint>`` (one per coordinate of a configuration, ``q.<joint>.<k>`` for a
-multi-coordinate joint) or ``m.<motor>`` (motor positions), ``p.<frame>.x``, ``.y``, ``.z`` (a
-marker's measured position, m; empty or ``nan`` where it was not seen), and optionally ``f.<frame>.fx``, ``fy``, ``fz``, ``tx``, ``ty``, ``tz``
-(a known load at the frame's origin, N and N.m, world axes). ``.npz``: the arrays
-``configurations`` or ``motors``, ``points/<frame>`` and ``loads/<frame>``.
+comments): ``q.<joint>`` (one per coordinate of a configuration, ``q.<joint>.<k>`` for a multi-
+coordinate joint) or ``m.<motor>`` (motor positions), ``p.<frame>.x``, ``.y``, ``.z`` (a marker's
+measured position, m; empty or ``nan`` where it was not seen), and optionally ``f.<frame>.fx``,
+``fy``, ``fz``, ``tx``, ``ty``, ``tz`` (a known load at the frame's origin, N and N.m, world
+axes). ``.npz``: the arrays ``configurations`` or ``motors``, ``points/<frame>`` and
+``loads/<frame>``.
 """
 
 from __future__ import annotations
