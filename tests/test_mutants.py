@@ -1,0 +1,385 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Tests written against single edits of the package (mutants) that the default run let through,
+each against something that shares no code with the edited line:
+
+* a joint coupling between joints with a ``ref`` (MJCF ``<equality><joint polycoef>``): MuJoCo's
+  own equality residual (``efc_pos``) and the relation as MuJoCo defines it,
+  ``joint1 - ref1 = poly(joint2 - ref2)``, evaluated here on MuJoCo's ``qpos``;
+* a sidecar's universal joints (``UJOINT_ab``: a hinge about a, then one about b): every link's
+  placement from a forward kinematics of the URDF written here (its XML read with ElementTree);
+* the compiled route given a configuration whose loops close but whose coupling is 1 mm off: the
+  Pinocchio route's error;
+* an H4 atlas streamed, interrupted and resumed: the uninterrupted atlas, element by element;
+* assembly over a grid of motor positions: the closures' own errors, below 1e-10; and
+  ``compliance_matrix`` called directly on corpus robots: the KKT route of ``tests/kkt.py`` on a
+  model built here with Pinocchio's URDF parser and the sidecar's frame pairs.
+
+``scripts/mutate.py`` makes such edits on demand (not in CI).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from kkt import closure_rows, kkt_compliance, spring_vector
+
+from h4pin.elastic import FrameOutput, JointOutput, Mechanism, UnassembledError, compliance_matrix
+from h4pin.errors import MechanismWarning
+
+yaml = pytest.importorskip("yaml")
+
+ROBOTS = Path(__file__).resolve().parent / "robots"
+
+
+# --------------------------------------------------------------------------------------------
+# 1. A joint coupling whose joints have a ref: MuJoCo's residual.
+
+#: A chain of three single-joint bodies, every hinge with a ref (rad), the wrist coupled to the
+#: coupler by a quadratic: wrist - 0.2 = 0.05 + 0.7 (coupler + 0.5) + 0.3 (coupler + 0.5)^2.
+COUPLED_REF = """<mujoco model="coupled_ref">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="base">
+      <geom type="sphere" size="0.01" mass="0.1"/>
+      <body name="crank">
+        <joint name="crank" type="hinge" axis="0 0 1" ref="0.3"/>
+        <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.01" mass="0.4"/>
+        <body name="coupler" pos="0.2 0 0">
+          <joint name="coupler" type="hinge" axis="0 0 1" ref="-0.5"/>
+          <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.01" mass="0.6"/>
+          <body name="tip" pos="0.4 0 0">
+            <joint name="wrist" type="hinge" axis="0 1 0" ref="0.2"/>
+            <geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.01" mass="0.2"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <equality>
+    <joint joint1="wrist" joint2="coupler" polycoef="0.05 0.7 0.3 0 0"/>
+  </equality>
+</mujoco>
+"""
+
+
+def _mujoco_state(mj, mech, q):
+    """MuJoCo's data at Pinocchio's q of COUPLED_REF (every hinge its body's only joint: qpos is
+    q), checked by the bodies' world positions, then ``mj_forward``."""
+    mujoco = pytest.importorskip("mujoco")
+    d = mujoco.MjData(mj)
+    for i in range(mj.njnt):
+        name = mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, i)
+        d.qpos[mj.jnt_qposadr[i]] = q[mech.model.joints[mech.model.getJointId(name)].idx_q]
+    mujoco.mj_forward(mj, d)
+    pd = mech.model.createData()
+    pin.framesForwardKinematics(mech.model, pd, q)
+    for b in range(1, mj.nbody):
+        f = pd.oMf[mech.model.getFrameId(mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, b), pin.FrameType.BODY)]
+        np.testing.assert_allclose(f.translation, d.xpos[b], rtol=0, atol=1e-12)
+    return d
+
+
+def _mujoco_coupling(mj, d):
+    """(MuJoCo's own residual of the one joint equality, the relation evaluated here on qpos:
+    joint1 - ref1 - poly(joint2 - ref2), ref = qpos0)."""
+    mujoco = pytest.importorskip("mujoco")
+    rows = [r for r in range(d.nefc) if int(d.efc_type[r]) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
+    assert len(rows) == 1
+    a1, a2 = (mj.jnt_qposadr[mj.eq_obj1id[0]], mj.jnt_qposadr[mj.eq_obj2id[0]])
+    u1, u2 = d.qpos[a1] - mj.qpos0[a1], d.qpos[a2] - mj.qpos0[a2]
+    mine = u1 - sum(c * u2**k for k, c in enumerate(mj.eq_data[0, :5]))
+    return float(d.efc_pos[rows[0]]), float(mine)
+
+
+def test_a_coupling_between_joints_with_a_ref_holds_as_mujoco_defines_it(tmp_path):
+    """Both joints of the coupling have a non-zero ref: the configuration h4pin assembles (the
+    coupler 0.4 rad off its ref, held) has MuJoCo's residual 0; at random configurations h4pin's
+    coupling error is MuJoCo's residual."""
+    mujoco = pytest.importorskip("mujoco")
+    if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
+        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+    path = tmp_path / "coupled_ref.xml"
+    path.write_text(COUPLED_REF)
+    mech = Mechanism.from_mjcf(path)
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    assert len(mech.couplings) == 1 and np.all(mj.qpos0 != 0)
+    model = mech.model
+    start = np.array(mech.reference)
+    start[model.joints[model.getJointId("coupler")].idx_q] += 0.4
+    q = mech.assemble(start, fixed=["crank", "coupler"])
+    assert q[model.joints[model.getJointId("coupler")].idx_q] == start[model.joints[model.getJointId("coupler")].idx_q]
+    theirs, mine = _mujoco_coupling(mj, _mujoco_state(mj, mech, q))
+    assert abs(theirs) < 1e-10 and abs(mine) < 1e-10
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        q = np.array(mech.reference) + rng.uniform(-0.6, 0.6, model.nq)
+        theirs, mine = _mujoco_coupling(mj, _mujoco_state(mj, mech, q))
+        assert abs(theirs - mine) < 1e-12 and abs(theirs) > 1e-3
+        got = mech.closure_errors(q)["coupling wrist"][0]
+        assert got == pytest.approx(abs(theirs), rel=1e-12, abs=1e-14)
+
+
+# --------------------------------------------------------------------------------------------
+# 2. Universal joints: which hinge is first, from the URDF's own geometry.
+
+def _axis_rotation(axis, angle: float) -> np.ndarray:
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * k @ k
+
+
+def _rpy(r: float, p: float, y: float) -> np.ndarray:
+    """URDF's fixed-axis roll, pitch, yaw: Rz(y) Ry(p) Rx(r)."""
+    return _axis_rotation([0, 0, 1], y) @ _axis_rotation([0, 1, 0], p) @ _axis_rotation([1, 0, 0], r)
+
+
+def _quaternion(x: float, y: float, z: float, w: float) -> np.ndarray:
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def urdf_placements(urdf: Path, conversions: dict[str, str], value) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every link's world (rotation, position), from the URDF's XML: each joint's origin (xyz,
+    rpy), then its motion -- about its axis by ``value(joint)``, or as the sidecar converts it:
+    ``UJOINT_ab`` turns about the joint frame's axis a by ``value(<joint>_a)``, then about the
+    turned axis b by ``value(<joint>_b)``; ``SPHERICAL`` by the quaternion ``value(joint)``
+    (x, y, z, w); ``FIXED`` not at all."""
+    root = ET.parse(urdf).getroot()
+    unit = {"X": [1, 0, 0], "Y": [0, 1, 0], "Z": [0, 0, 1]}
+    joint_of = {}
+    for j in root.findall("joint"):
+        o = j.find("origin")
+        xyz = np.array([float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()])
+        rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+        ax = j.find("axis")
+        axis = [float(v) for v in ax.get("xyz").split()] if ax is not None else [1.0, 0.0, 0.0]
+        joint_of[j.find("child").get("link")] = (j.get("name"), j.get("type"), j.find("parent").get("link"), xyz,
+                                                 _rpy(*rpy), axis)
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def place(link: str) -> tuple[np.ndarray, np.ndarray]:
+        if link in out:
+            return out[link]
+        if link not in joint_of:  # the root
+            out[link] = (np.eye(3), np.zeros(3))
+            return out[link]
+        name, kind, parent, xyz, rot, axis = joint_of[link]
+        r0, p0 = place(parent)
+        r, p = r0 @ rot, p0 + r0 @ xyz
+        conv = conversions.get(name)
+        if conv is not None and conv.startswith("UJOINT"):
+            a, b = conv[-2], conv[-1]
+            r = r @ _axis_rotation(unit[a], value(f"{name}_{a}")) @ _axis_rotation(unit[b], value(f"{name}_{b}"))
+        elif conv == "SPHERICAL":
+            r = r @ _quaternion(*value(name))
+        elif conv == "FIXED" or kind == "fixed":
+            pass
+        elif kind == "revolute":
+            r = r @ _axis_rotation(axis, value(name))
+        elif kind == "prismatic":
+            p = p + r @ (np.asarray(axis) / np.linalg.norm(axis)) * value(name)
+        else:
+            raise AssertionError(f"joint {name!r}: type {kind!r} not handled here")
+        out[link] = (r, p)
+        return out[link]
+
+    for link in root.findall("link"):
+        place(link.get("name"))
+    return out
+
+
+@pytest.mark.parametrize("robot", ["battobot_6d", "digit_like_2legs"])
+def test_universal_joints_turn_about_the_sidecars_axes_in_order(robot):
+    """Every link's placement at a random configuration (all hinges and balls turned) equals the
+    URDF's own forward kinematics with each ``UJOINT_ab`` a hinge about a then one about b."""
+    urdf = ROBOTS / robot / "robot.urdf"
+    side = yaml.safe_load((ROBOTS / robot / "robot.yaml").read_text())
+    conversions = dict(zip(side["joint_name"], side["joint_type"], strict=True))
+    assert any(c.startswith("UJOINT") and c[-2] != c[-1] for c in conversions.values())
+    mech = Mechanism.from_urdf(urdf)
+    model = mech.model
+    rng = np.random.default_rng(2)
+    q = pin.neutral(model)
+    for j in range(1, model.njoints):
+        jm = model.joints[j]
+        if jm.nq == 1:
+            q[jm.idx_q] = rng.uniform(-1.2, 1.2)
+        else:
+            assert jm.nq == 4, model.names[j]
+            x = rng.normal(size=4)
+            q[jm.idx_q:jm.idx_q + 4] = x / np.linalg.norm(x)
+
+    def value(name: str):
+        jm = model.joints[model.getJointId(name)]
+        assert model.existJointName(name), name
+        return q[jm.idx_q] if jm.nq == 1 else q[jm.idx_q:jm.idx_q + 4]
+
+    want = urdf_placements(urdf, conversions, value)
+    d = model.createData()
+    pin.framesForwardKinematics(model, d, q)
+    assert len(want) == sum(f.type == pin.FrameType.BODY for f in model.frames)
+    for link, (r, p) in want.items():
+        got = d.oMf[model.getFrameId(link, pin.FrameType.BODY)]
+        np.testing.assert_allclose(got.rotation, r, rtol=0, atol=1e-12, err_msg=link)
+        np.testing.assert_allclose(got.translation, p, rtol=0, atol=1e-12, err_msg=link)
+
+
+# --------------------------------------------------------------------------------------------
+# 3. The compiled route and a coupling that does not hold.
+
+def test_the_compiled_route_refuses_a_configuration_whose_coupling_is_off():
+    """coupled.xml (a loop and rocker_pitch = coupler_roll), assembled with the coupling shifted
+    by 1 mm (1e-3 rad): the loop closes, the file's coupling is 1e-3 off; the compiled route
+    raises the Pinocchio route's UnassembledError, for one configuration and in a batch, for
+    compliance and natural frequencies."""
+    if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
+        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+    pytest.importorskip("mujoco")
+    mech = Mechanism.from_mjcf(ROBOTS / "synthetic" / "coupled.xml")
+    (c,) = mech.couplings
+    shifted = dataclasses.replace(c, poly=(c.poly[0] + 1e-3, *c.poly[1:]))
+    other = Mechanism(mech.model, mech.constraint_models, mech.actuated, reference=mech.reference,
+                      ranges=mech.ranges, couplings=[shifted])
+    q, good = other.assemble(), mech.assemble()
+    errors = mech.closure_errors(q)
+    assert errors["closure_1"][0] < 1e-12 and errors["coupling rocker_pitch"][0] == pytest.approx(1e-3, rel=1e-9)
+    springs = {n: 50.0 * (1 + 0.1 * i) for i, n in enumerate(list(mech.model.names)[1:])}
+    out = [FrameOutput("coupler", kind=pin.FrameType.BODY)]
+    for call in (lambda m: mech.compliance(q, springs, out, method=m),
+                 lambda m: mech.compliance(np.array([good, q]), springs, out, method=m),
+                 lambda m: mech.modes(np.array([good, q]), springs, method=m)):
+        messages = []
+        for method in ("pinocchio", "compiled"):
+            with pytest.raises(UnassembledError, match="coupling of 'rocker_pitch' does not hold") as info:
+                call(method)
+            messages.append(str(info.value))
+        assert messages[0] == messages[1]
+    # and the compiled route does compute the good configuration (the refusal is not a blanket one)
+    want = mech.compliance(good, springs, out, method="pinocchio")
+    assert np.abs(want).max() > 1e-3
+    np.testing.assert_allclose(mech.compliance(np.array([good]), springs, out, method="compiled")[0], want, rtol=0,
+                               atol=1e-12 * np.abs(want).max())
+
+
+# --------------------------------------------------------------------------------------------
+# 4. An H4 atlas interrupted and resumed.
+
+def test_a_small_h4_atlas_resumed_equals_the_uninterrupted_one(proto, centre, tmp_path, monkeypatch):
+    """A 2 x 4 x 4 atlas of 8 blocks of 4 poses, interrupted in its 3rd block, then resumed: the
+    resumed run computes the 6 blocks not done, and the store equals the atlas computed in memory
+    without interruption, element by element (every pose reachable)."""
+    pytest.importorskip("zarr")
+    from h4pin.studies import atlas
+
+    grid = {"x": centre[0] + np.linspace(-0.06, 0.06, 4), "y": centre[1] + np.linspace(-0.05, 0.05, 4),
+            "z": [centre[2]], "theta": [0.0, 0.3]}
+    want = atlas.atlas(proto, **grid, chunk=4, progress=False)
+    assert (want.status.values == 0).all()
+    real = atlas._derived.atlas_fields
+    calls = []
+
+    def interrupted_at_3(*args):
+        calls.append(len(args[2]))
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    path = tmp_path / "a.zarr"
+    monkeypatch.setattr(atlas._derived, "atlas_fields", interrupted_at_3)
+    with pytest.raises(KeyboardInterrupt):
+        atlas.stream(proto, **grid, chunk=4, progress=False, out=path)
+    assert not path.exists() and atlas.partial_path(path).is_dir()
+    calls.clear()
+    monkeypatch.setattr(atlas._derived, "atlas_fields", lambda *a: (calls.append(len(a[2])), real(*a))[1])
+    got = atlas.stream(proto, **grid, chunk=4, progress=False, out=path).load()
+    assert calls == [4] * 6
+    assert not atlas.partial_path(path).exists()
+    for name in (*atlas.QUANTITIES, "status"):
+        a, b = got[name].values, want[name].values
+        assert a.shape == b.shape == (2, 1, 4, 4), name
+        assert np.all(np.isfinite(b)), name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+# --------------------------------------------------------------------------------------------
+# 5. Assembly to its tolerance, and compliance_matrix against the KKT route.
+
+@pytest.mark.parametrize(("robot", "n", "span"), [("5bar_linkage_iso3d", 7, 0.3), ("5bar_linkage", 9, 0.4)])
+def test_assembly_over_a_motor_grid_closes_to_1e_10(robot, n, span):
+    """assemble(motors=grid) (continuation, Newton's steps first) over n x n motor positions
+    around the reference's: every configuration holds the motors and closes the loop within
+    1e-10 m, the closures' own errors at each."""
+    mech = Mechanism.from_urdf(ROBOTS / robot / "robot.urdf")
+    ref = mech.assemble()
+    idx = [mech.model.joints[mech.model.getJointId(m)].idx_q for m in mech.actuated]
+    steps = np.linspace(-span, span, n)
+    grid = np.array([ref[idx] + [a, b] for a in steps for b in steps])
+    Q = mech.assemble(ref, motors=grid)
+    np.testing.assert_array_equal(Q[:, idx], grid)
+    worst = [max(max(e) for e in mech.closure_errors(q).values()) for q in Q]
+    assert max(worst) < 1e-10, (int(np.argmax(worst)), max(worst))
+
+
+def _sidecar_model(robot: str) -> tuple[pin.Model, list, dict]:
+    """The robot as Gepetto's loader builds it when the sidecar converts no joint: Pinocchio's URDF
+    parser, each frame pair a closure between the frames' parent joints at their placements."""
+    side = yaml.safe_load((ROBOTS / robot / "robot.yaml").read_text())
+    assert not side.get("joint_name")
+    model = pin.buildModelFromUrdf(str(ROBOTS / robot / "robot.urdf"))
+    cms = []
+    for (a, b), kind in zip(side["closed_loop"], side["type"], strict=True):
+        f1, f2 = (model.frames[model.getFrameId(n)] for n in (a, b))
+        ctype = pin.ContactType.CONTACT_3D if kind.upper() == "3D" else pin.ContactType.CONTACT_6D
+        cms.append(pin.RigidConstraintModel(ctype, model, f1.parentJoint, f1.placement, f2.parentJoint, f2.placement,
+                                            pin.ReferenceFrame.LOCAL))
+    return model, cms, side
+
+
+@pytest.mark.parametrize("robot", ["5bar_linkage_iso3d", "5bar_linkage_iso6d"])
+def test_compliance_matrix_equals_the_kkt_route(robot):
+    """engine.compliance_matrix called directly (a 3-D and a 6-D closure; a frame in world-aligned
+    and local axes and a joint output; springs everywhere, then with an extra constraint row, then
+    with a motor locked)
+    equals the dense KKT solve of tests/kkt.py on the same closures' rows."""
+    model, cms, side = _sidecar_model(robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        q = Mechanism(model, cms, side["name_mot"]).assemble()
+    d = model.createData()
+    pin.computeJointJacobians(model, d, q)
+    pin.updateFramePlacements(model, d)
+    for cm in cms:  # closed, by the closure's own frames
+        o1, o2 = d.oMi[cm.joint1_id] * cm.joint1_placement, d.oMi[cm.joint2_id] * cm.joint2_placement
+        assert np.linalg.norm(o1.translation - o2.translation) < 1e-10
+        if cm.type == pin.ContactType.CONTACT_6D:
+            assert np.linalg.norm(pin.log3(o1.rotation.T @ o2.rotation)) < 1e-10
+    names = list(model.names)[1:]
+    frame = side["closed_loop"][0][0]
+    free = next(n for n in names if n not in side["name_mot"])
+    outputs = [FrameOutput(frame), FrameOutput(frame, reference=pin.LOCAL, rows=(0, 1, 5)), JointOutput(free, -2.0)]
+    fid = model.getFrameId(frame)
+    jo = np.vstack([pin.getFrameJacobian(model, d, fid, pin.LOCAL_WORLD_ALIGNED),
+                    pin.getFrameJacobian(model, d, fid, pin.LOCAL)[[0, 1, 5]],
+                    -2.0 * np.eye(model.nv)[model.joints[model.getJointId(free)].idx_v]])
+    eye = np.eye(model.nv)
+    extra = np.zeros((1, model.nv))
+    extra[0, model.joints[model.getJointId(free)].idx_v] = 1.0
+    extra[0, model.joints[model.getJointId(side["name_mot"][1])].idx_v] = -0.5
+    closures = np.vstack([closure_rows(model, d, cm) for cm in cms])
+    for locked, rows in (((), None), ((), extra), (side["name_mot"][:1], None)):
+        springs = {n: 30.0 * (1 + 0.2 * i) for i, n in enumerate(names) if n not in locked}
+        held = [eye[model.joints[model.getJointId(m)].idx_v] for m in locked]
+        a = np.vstack([closures, *held] + ([] if rows is None else [rows]))
+        got = compliance_matrix(model, cms, q, locked=tuple(locked), stiffness=springs, outputs=outputs,
+                                extra_rows=rows)
+        want = kkt_compliance(a, spring_vector(model, springs), jo)
+        assert np.abs(want).max() > 1e-4
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
