@@ -2,11 +2,12 @@
 """Tests written against single edits of the package (mutants) that the default run let through,
 each against something that shares no code with the edited line:
 
-* a joint coupling between joints with a ``ref`` (MJCF ``<equality><joint polycoef>``): MuJoCo's
-  own equality residual (``efc_pos``) and the relation as MuJoCo defines it,
-  ``joint1 - ref1 = poly(joint2 - ref2)``, evaluated here on MuJoCo's ``qpos``;
-* a sidecar's universal joints (``UJOINT_ab``: a hinge about a, then one about b): every link's
-  placement from a forward kinematics of the URDF written here (its XML read with ElementTree);
+* joint couplings between joints with a ``ref`` (MJCF ``<equality><joint polycoef>``, with and
+  without joint2): MuJoCo's own equality residual (``efc_pos``) and the relation as MuJoCo defines
+  it, ``joint1 - ref1 = poly(joint2 - ref2)``, evaluated here on MuJoCo's ``qpos``;
+* a sidecar's joint conversions (``UJOINT_ab``: a hinge about a, then one about b; ``SPHERICAL``;
+  ``FIXED``): every link's placement from a forward kinematics of the URDF written here (its XML
+  read with ElementTree);
 * the compiled route given a configuration whose loops close but whose coupling is 1 mm off: the
   Pinocchio route's error;
 * an H4 atlas streamed, interrupted and resumed: the uninterrupted atlas, element by element;
@@ -14,7 +15,10 @@ each against something that shares no code with the edited line:
   ``compliance_matrix`` called directly on corpus robots: the KKT route of ``tests/kkt.py`` on a
   model built here with Pinocchio's URDF parser and the sidecar's frame pairs.
 
-``scripts/mutate.py`` makes such edits on demand (not in CI).
+The last section holds the tests added for the survivors of a ``scripts/mutate.py`` run (which
+makes such edits on demand, not in CI): couplings built in code with their default origins, the
+order of the joints an UnrestrainedMotionError names, the documented refusals of an infinite
+stiffness and of ``iterations=0``, and the batches' size estimates.
 """
 
 from __future__ import annotations
@@ -29,8 +33,17 @@ import pinocchio as pin
 import pytest
 from kkt import closure_rows, kkt_compliance, spring_vector
 
-from h4pin.elastic import FrameOutput, JointOutput, Mechanism, UnassembledError, compliance_matrix
-from h4pin.errors import MechanismWarning
+from h4pin import limits
+from h4pin.elastic import (
+    FrameOutput,
+    JointCoupling,
+    JointOutput,
+    Mechanism,
+    UnassembledError,
+    UnrestrainedMotionError,
+    compliance_matrix,
+)
+from h4pin.errors import MechanismWarning, ParameterError
 
 yaml = pytest.importorskip("yaml")
 
@@ -40,8 +53,9 @@ ROBOTS = Path(__file__).resolve().parent / "robots"
 # --------------------------------------------------------------------------------------------
 # 1. A joint coupling whose joints have a ref: MuJoCo's residual.
 
-#: A chain of three single-joint bodies, every hinge with a ref (rad), the wrist coupled to the
-#: coupler by a quadratic: wrist - 0.2 = 0.05 + 0.7 (coupler + 0.5) + 0.3 (coupler + 0.5)^2.
+#: A chain of four single-joint bodies, every hinge with a ref (rad), the wrist coupled to the
+#: coupler by a quadratic: wrist - 0.2 = 0.05 + 0.7 (coupler + 0.5) + 0.3 (coupler + 0.5)^2, and
+#: the roll held by an equality without joint2: roll - 0.1 = 0.25.
 COUPLED_REF = """<mujoco model="coupled_ref">
   <compiler angle="radian"/>
   <worldbody>
@@ -56,6 +70,10 @@ COUPLED_REF = """<mujoco model="coupled_ref">
           <body name="tip" pos="0.4 0 0">
             <joint name="wrist" type="hinge" axis="0 1 0" ref="0.2"/>
             <geom type="capsule" fromto="0 0 0 0.1 0 0" size="0.01" mass="0.2"/>
+            <body name="hand" pos="0.1 0 0">
+              <joint name="roll" type="hinge" axis="1 0 0" ref="0.1"/>
+              <geom type="box" size="0.02 0.03 0.01" mass="0.1"/>
+            </body>
           </body>
         </body>
       </body>
@@ -63,6 +81,7 @@ COUPLED_REF = """<mujoco model="coupled_ref">
   </worldbody>
   <equality>
     <joint joint1="wrist" joint2="coupler" polycoef="0.05 0.7 0.3 0 0"/>
+    <joint joint1="roll" polycoef="0.25 0 0 0 0"/>
   </equality>
 </mujoco>
 """
@@ -85,22 +104,33 @@ def _mujoco_state(mj, mech, q):
     return d
 
 
-def _mujoco_coupling(mj, d):
-    """(MuJoCo's own residual of the one joint equality, the relation evaluated here on qpos:
-    joint1 - ref1 - poly(joint2 - ref2), ref = qpos0)."""
+def _mujoco_couplings(mj, d):
+    """{joint1: (MuJoCo's own residual of its joint equality, the relation evaluated here on
+    qpos: joint1 - ref1 - poly(joint2 - ref2), or joint1 - ref1 - polycoef[0] without joint2;
+    ref = qpos0)}."""
     mujoco = pytest.importorskip("mujoco")
-    rows = [r for r in range(d.nefc) if int(d.efc_type[r]) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)]
-    assert len(rows) == 1
-    a1, a2 = (mj.jnt_qposadr[mj.eq_obj1id[0]], mj.jnt_qposadr[mj.eq_obj2id[0]])
-    u1, u2 = d.qpos[a1] - mj.qpos0[a1], d.qpos[a2] - mj.qpos0[a2]
-    mine = u1 - sum(c * u2**k for k, c in enumerate(mj.eq_data[0, :5]))
-    return float(d.efc_pos[rows[0]]), float(mine)
+    rows = {int(d.efc_id[r]): r for r in range(d.nefc)
+            if int(d.efc_type[r]) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)}
+    assert sorted(rows) == list(range(mj.neq))
+    out = {}
+    for i in range(mj.neq):
+        a1 = mj.jnt_qposadr[mj.eq_obj1id[i]]
+        u1 = d.qpos[a1] - mj.qpos0[a1]
+        if mj.eq_obj2id[i] < 0:
+            mine = u1 - mj.eq_data[i, 0]
+        else:
+            a2 = mj.jnt_qposadr[mj.eq_obj2id[i]]
+            u2 = d.qpos[a2] - mj.qpos0[a2]
+            mine = u1 - sum(c * u2**k for k, c in enumerate(mj.eq_data[i, :5]))
+        out[mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, mj.eq_obj1id[i])] = (float(d.efc_pos[rows[i]]),
+                                                                                  float(mine))
+    return out
 
 
 def test_a_coupling_between_joints_with_a_ref_holds_as_mujoco_defines_it(tmp_path):
-    """Both joints of the coupling have a non-zero ref: the configuration h4pin assembles (the
-    coupler 0.4 rad off its ref, held) has MuJoCo's residual 0; at random configurations h4pin's
-    coupling error is MuJoCo's residual."""
+    """Every joint of the couplings has a non-zero ref: the configuration h4pin assembles (the
+    coupler 0.4 rad off its ref, held) has MuJoCo's residuals 0; at random configurations h4pin's
+    coupling errors are MuJoCo's residuals."""
     mujoco = pytest.importorskip("mujoco")
     if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
         pytest.skip("Pinocchio < 4 reads no closures from MJCF")
@@ -108,25 +138,25 @@ def test_a_coupling_between_joints_with_a_ref_holds_as_mujoco_defines_it(tmp_pat
     path.write_text(COUPLED_REF)
     mech = Mechanism.from_mjcf(path)
     mj = mujoco.MjModel.from_xml_path(str(path))
-    assert len(mech.couplings) == 1 and np.all(mj.qpos0 != 0)
+    assert len(mech.couplings) == 2 and np.all(mj.qpos0 != 0)
     model = mech.model
     start = np.array(mech.reference)
     start[model.joints[model.getJointId("coupler")].idx_q] += 0.4
     q = mech.assemble(start, fixed=["crank", "coupler"])
     assert q[model.joints[model.getJointId("coupler")].idx_q] == start[model.joints[model.getJointId("coupler")].idx_q]
-    theirs, mine = _mujoco_coupling(mj, _mujoco_state(mj, mech, q))
-    assert abs(theirs) < 1e-10 and abs(mine) < 1e-10
+    for theirs, mine in _mujoco_couplings(mj, _mujoco_state(mj, mech, q)).values():
+        assert abs(theirs) < 1e-10 and abs(mine) < 1e-10
     rng = np.random.default_rng(4)
     for _ in range(5):
         q = np.array(mech.reference) + rng.uniform(-0.6, 0.6, model.nq)
-        theirs, mine = _mujoco_coupling(mj, _mujoco_state(mj, mech, q))
-        assert abs(theirs - mine) < 1e-12 and abs(theirs) > 1e-3
-        got = mech.closure_errors(q)["coupling wrist"][0]
-        assert got == pytest.approx(abs(theirs), rel=1e-12, abs=1e-14)
+        errors = mech.closure_errors(q)
+        for joint, (theirs, mine) in _mujoco_couplings(mj, _mujoco_state(mj, mech, q)).items():
+            assert abs(theirs - mine) < 1e-12 and abs(theirs) > 1e-3
+            assert errors[f"coupling {joint}"][0] == pytest.approx(abs(theirs), rel=1e-12, abs=1e-14)
 
 
 # --------------------------------------------------------------------------------------------
-# 2. Universal joints: which hinge is first, from the URDF's own geometry.
+# 2. The sidecar's joint conversions (universal, ball, fixed), from the URDF's own geometry.
 
 def _axis_rotation(axis, angle: float) -> np.ndarray:
     a = np.asarray(axis, dtype=float)
@@ -196,16 +226,18 @@ def urdf_placements(urdf: Path, conversions: dict[str, str], value) -> dict[str,
     return out
 
 
-@pytest.mark.parametrize("robot", ["battobot_6d", "digit_like_2legs"])
-def test_universal_joints_turn_about_the_sidecars_axes_in_order(robot):
+@pytest.mark.parametrize("robot", ["battobot_6d", "digit_like_2legs", "digit_like_2legs_6D"])
+def test_sidecar_joint_conversions_match_the_urdf_geometry(robot):
     """Every link's placement at a random configuration (all hinges and balls turned) equals the
-    URDF's own forward kinematics with each ``UJOINT_ab`` a hinge about a then one about b."""
+    URDF's own forward kinematics with each ``UJOINT_ab`` a hinge about a then one about b, each
+    ``SPHERICAL`` a ball, each ``FIXED`` joint at 0 (and not a joint of the model)."""
     urdf = ROBOTS / robot / "robot.urdf"
     side = yaml.safe_load((ROBOTS / robot / "robot.yaml").read_text())
     conversions = dict(zip(side["joint_name"], side["joint_type"], strict=True))
-    assert any(c.startswith("UJOINT") and c[-2] != c[-1] for c in conversions.values())
+    assert any(c == "FIXED" or (c.startswith("UJOINT") and c[-2] != c[-1]) for c in conversions.values())
     mech = Mechanism.from_urdf(urdf)
     model = mech.model
+    assert not any(model.existJointName(n) for n, c in conversions.items() if c == "FIXED")
     rng = np.random.default_rng(2)
     q = pin.neutral(model)
     for j in range(1, model.njoints):
@@ -383,3 +415,87 @@ def test_compliance_matrix_equals_the_kkt_route(robot):
         want = kkt_compliance(a, spring_vector(model, springs), jo)
         assert np.abs(want).max() > 1e-4
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
+# --------------------------------------------------------------------------------------------
+# 6. Survivors of scripts/mutate.py (its run of 40 mutants over the generic engine).
+
+def test_couplings_built_in_code_measure_from_zero_by_default():
+    """JointCoupling's origins default to 0 (``u = q``): on a chain of three hinges,
+    j2 = 0.1 + 2 j1 and j3 = 0.25 (no joint2) hold, by hand, where the assembly puts them."""
+    model = pin.Model()
+    parent = 0
+    for i in (1, 2, 3):
+        parent = model.addJoint(parent, pin.JointModelRZ(), pin.SE3(np.eye(3), np.array([0.2, 0.0, 0.0])), f"j{i}")
+        model.appendBodyToJoint(parent, pin.Inertia.FromSphere(1.0, 0.05), pin.SE3.Identity())
+    mech = Mechanism(model, couplings=[JointCoupling("j2", "j1", (0.1, 2.0)), JointCoupling("j3", None, (0.25,))])
+    q = mech.assemble(np.array([0.3, -0.4, 0.9]), fixed=["j1"])
+    np.testing.assert_allclose(q, [0.3, 0.1 + 2.0 * 0.3, 0.25], rtol=0, atol=1e-12)
+    errors = mech.closure_errors(np.array([0.5, 1.0, -0.5]))
+    assert errors["coupling j2"][0] == pytest.approx(abs(1.0 - 0.1 - 2.0 * 0.5), rel=1e-14)
+    assert errors["coupling j3"][0] == pytest.approx(abs(-0.5 - 0.25), rel=1e-14)
+
+
+def test_an_unrestrained_motion_names_its_joints_largest_first():
+    """The five-bar with a spring on one motor only: one admissible motion strains no spring; the
+    error names the joints it moves in decreasing amplitude, the motion computed here as the null
+    space of the closure's rows and the sprung motor's (tests/kkt.py, scipy)."""
+    from kkt import constraint_rows
+    from scipy.linalg import null_space
+
+    mech = Mechanism.from_urdf(ROBOTS / "5bar_linkage_iso3d" / "robot.urdf")
+    model = mech.model
+    q = mech.assemble()
+    with pytest.raises(UnrestrainedMotionError) as info:
+        mech.compliance(q, {"mot1": 10.0}, ["closedloop3D_1B"])
+    a, _ = constraint_rows(model, mech.constraint_models, q, ["mot1"])
+    motion = null_space(a)
+    assert motion.shape[1] == 1
+    amp = {model.names[j]: abs(motion[model.joints[j].idx_v, 0]) for j in range(1, model.njoints)}
+    want = tuple(sorted((n for n in amp if amp[n] > 0.1 * max(amp.values())), key=lambda n: -amp[n]))
+    assert len(want) >= 3 and info.value.joints == want
+    assert str(info.value).index(want[0]) < str(info.value).index(want[-1])
+
+
+def test_documented_refusals_of_a_spring_and_of_the_assembly():
+    """An infinite stiffness is refused ("finite and > 0"), and so is ``iterations=0`` ("an
+    integer >= 1"), by name."""
+    mech = Mechanism.from_urdf(ROBOTS / "5bar_linkage_iso3d" / "robot.urdf")
+    q = mech.assemble()
+    springs = {n: 10.0 for n in list(mech.model.names)[1:]}
+    with pytest.raises(ParameterError, match="stiffness of joint 'mot1' must be finite and > 0"):
+        mech.compliance(q, {**springs, "mot1": float("inf")}, ["closedloop3D_1B"])
+    with pytest.raises(ParameterError, match="iterations: an integer >= 1, got 0"):
+        mech.assemble(iterations=0)
+
+
+def test_batch_size_estimates_cover_the_arrays_the_calls_hold(monkeypatch):
+    """Each memory estimate of a batch call (h4pin.limits.check_size's ``need``) is at least the
+    bytes of the arrays the call holds: the batch's own copy (N, nq), the compliances (N, m, m)
+    and the frequencies it returns -- on WL16 (nq = 42: a configuration's copy alone is larger
+    than the fixed part of the estimate)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        mech = Mechanism.from_urdf(ROBOTS / "wl16_like" / "robot.urdf")
+        q = mech.assemble()
+    names = list(mech.model.names)[1:]
+    springs = {n: (2e3 if n in mech.actuated else 50.0) * (1 + 0.1 * (i % 7)) for i, n in enumerate(names)}
+    frame = yaml.safe_load((ROBOTS / "wl16_like" / "robot.yaml").read_text())["closed_loop"][0][0]
+    Q = np.array([q, q, q])
+    seen: list[tuple[str, float]] = []
+    real = limits.check_size
+
+    def recorder(what, need, *args, **kwargs):
+        seen.append((what, float(need)))
+        return real(what, need, *args, **kwargs)
+
+    monkeypatch.setattr(limits, "check_size", recorder)
+    C = mech.compliance(Q, springs, [frame, FrameOutput(frame, reference=pin.LOCAL)])
+    freq = mech.modes(Q, springs).frequencies
+    assert mech.model.nq * 8 > 256 and np.all(np.isfinite(freq[:, 0]))
+    batch = [need for what, need in seen if what.endswith(": 3 configurations")]
+    assert len(batch) == 2 and min(batch) >= Q.nbytes
+    (comp,) = [need for what, need in seen if "compliance of 3 configurations" in what]
+    assert comp >= C.nbytes
+    (modal,) = [need for what, need in seen if "natural frequencies of 3 configurations" in what]
+    assert modal >= np.isfinite(freq).sum() * 8
