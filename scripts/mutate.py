@@ -62,10 +62,22 @@ MODULES = ("h4pin/elastic/engine.py", "h4pin/elastic/batch.py", "h4pin/elastic/c
 #: at the first failure). Measured about 40 s (generic engine) and 35 s (eq. 30) a run.
 GENERIC_TESTS = ("tests/test_mutants.py", "tests/test_mechanism_fuzz.py", "tests/test_mjcf_mechanism.py",
                  "tests/test_corpus_mjcf.py", "tests/test_beams.py", "tests/test_interop.py",
-                 "tests/test_mechanism_compiled.py", "tests/test_corpus.py", "tests/test_mechanism.py")
+                 "tests/test_elastic.py", "tests/test_mechanism_compiled.py", "tests/test_corpus.py",
+                 "tests/test_mechanism.py")
 H4_TESTS = ("tests/test_model.py", "tests/test_stiffness.py", "tests/test_elastic.py", "tests/test_core.py",
             "tests/test_pipeline.py")
-TESTS = {m: (H4_TESTS if "/stiffness/" in m else GENERIC_TESTS) for m in MODULES}
+#: Survivors judged equivalent: (file name, the source line stripped, operator, old, new) -> why.
+#: A survivor that matches is reported as ``equivalent`` with its reason, not as a survivor.
+EQUIVALENT = {
+    ("batch.py", "if threads == 1 or n <= BLOCK:", "cmp-flip", "==", "!="):
+        "threads change no number: the blocks fill disjoint slices whether run serially or on a pool "
+        "(the edit only loses the parallelism)",
+    ("mjcf_reader.py", "if gap > 1e-9 * length or turn > 1e-9:", "cmp-edge", ">", ">="):
+        "a measured gap (of placement or of rotation) exactly equal to its bound: the two comparisons differ on "
+        "that one float only",
+    ("engine.py", "status: Any = 0", "const", "0", "1"):
+        "Modes' default status: every constructor call in h4pin passes the status",
+}
 #: What the copy leaves out.
 SKIP = {".git", ".venv", "venv", ".mypy_cache", ".ruff_cache", ".pytest_cache", "node_modules", "build", "dist"}
 
@@ -263,6 +275,11 @@ def find_mutants(module: str) -> list[Mutant]:
     return unique
 
 
+def _line(m: Mutant) -> str:
+    """The stripped source line of the mutant (as the working tree has it)."""
+    return (ROOT / m.module).read_text().splitlines()[m.line - 1].strip()
+
+
 def apply(m: Mutant, data: bytes) -> bytes:
     return data[:m.start] + m.new.encode() + data[m.end:]
 
@@ -277,14 +294,32 @@ def _compiles(m: Mutant) -> bool:
 
 
 # ------------------------------------------------------------------------------ running them
+def _locate(module: str) -> str | None:
+    """``module`` (a path in the repository), or the one file of its name under h4pin/ when it
+    has moved (a package reorganised); None when there is no such file, or several."""
+    if (ROOT / module).is_file():
+        return module
+    hits = sorted((ROOT / "h4pin").rglob(Path(module).name))
+    return str(hits[0].relative_to(ROOT)) if len(hits) == 1 else None
+
+
+def _subset(module: str) -> tuple[str, ...]:
+    return H4_TESTS if "/stiffness/" in module else GENERIC_TESTS
+
+
 def _resolve(names: list[str] | None) -> list[str]:
+    known = {m: _locate(m) for m in MODULES}
     if not names:
-        return list(MODULES)
+        for m, where in known.items():
+            if where is None:
+                print(f"mutate: {m} not found (moved?): left out; give it with --modules", file=sys.stderr)
+        return [w for w in known.values() if w is not None]
     out = []
     for n in names:
-        hits = [m for m in MODULES if m == n or Path(m).name == n or Path(m).stem == n]
-        if not hits and (ROOT / n).is_file():
-            hits = [n]
+        hits = [w for m, w in known.items() if w is not None and n in (m, w, Path(m).name, Path(m).stem)]
+        if not hits:
+            where = _locate(n) if n.endswith(".py") else _locate(f"{n}.py")
+            hits = [where] if where is not None else []
         if not hits:
             raise SystemExit(f"mutate: no module {n!r} (known: {', '.join(Path(m).stem for m in MODULES)}, "
                              "or a path in the repository)")
@@ -454,7 +489,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"copying the tree to {tree} ...", flush=True)
         _copy_tree(tree)
         runner.check_import()
-        subsets = {m: list(args.tests) if args.tests else list(TESTS.get(m, GENERIC_TESTS)) for m in modules}
+        subsets = {m: list(args.tests) if args.tests else list(_subset(m)) for m in modules}
         base: dict[tuple[str, ...], float] = {}
         for subset in {tuple(s) for s in subsets.values()}:
             if not any(subsets[x.module] == list(subset) for x in chosen):
@@ -484,8 +519,12 @@ def main(argv: list[str] | None = None) -> int:
             finally:
                 put_back()
                 rewritten = runner.restore_caches()
+            why = EQUIVALENT.get((Path(m.module).name, _line(m), m.operator, m.old, m.new))
+            if status == "survived" and why is not None:
+                status = "equivalent"
             results.append({"id": m.ident, "module": m.module, "line": m.line, "operator": m.operator, "old": m.old,
-                            "new": m.new, "status": status, "seconds": seconds, "caches_restored": rewritten})
+                            "new": m.new, "status": status, "seconds": seconds, "caches_restored": rewritten,
+                            "why": why if status == "equivalent" else None})
             print(f"[{i}/{len(chosen)}] {status:<8} {m.ident:<40} {m.old!r} -> {m.new!r} ({seconds:.0f} s)",
                   flush=True)
     except KeyboardInterrupt:
@@ -502,8 +541,14 @@ def main(argv: list[str] | None = None) -> int:
     killed = [r for r in results if r["status"] == "killed"]
     survived = [r for r in results if r["status"] == "survived"]
     timeouts = [r for r in results if r["status"] == "timeout"]
-    print(f"\n{len(results)} mutants run: {len(killed)} killed, {len(survived)} survived, {len(timeouts)} timed out")
+    same = [r for r in results if r["status"] == "equivalent"]
+    print(f"\n{len(results)} mutants run: {len(killed)} killed, {len(survived)} survived, {len(same)} known "
+          f"equivalent, {len(timeouts)} timed out")
     print(_table(survived, "survivors"))
+    if same:
+        print(_table(same, "known equivalent (scripts/mutate.py EQUIVALENT)"))
+        for r in same:
+            print(f"  {r['id']}: {r['why']}")
     if timeouts:
         print(_table(timeouts, "timed out"))
     if args.json:

@@ -17,8 +17,8 @@ each against something that shares no code with the edited line:
 
 The last section holds the tests added for the survivors of a ``scripts/mutate.py`` run (which
 makes such edits on demand, not in CI): couplings built in code with their default origins, the
-order of the joints an UnrestrainedMotionError names, the documented refusals of an infinite
-stiffness and of ``iterations=0``, and the batches' size estimates.
+order of the joints an UnrestrainedMotionError names, the documented refusals of a zero or
+infinite stiffness and of ``iterations=0``, and the batches' size estimates.
 """
 
 from __future__ import annotations
@@ -458,13 +458,14 @@ def test_an_unrestrained_motion_names_its_joints_largest_first():
 
 
 def test_documented_refusals_of_a_spring_and_of_the_assembly():
-    """An infinite stiffness is refused ("finite and > 0"), and so is ``iterations=0`` ("an
-    integer >= 1"), by name."""
+    """A zero or an infinite stiffness is refused ("finite and > 0"), and so is ``iterations=0``
+    ("an integer >= 1"), by name."""
     mech = Mechanism.from_urdf(ROBOTS / "5bar_linkage_iso3d" / "robot.urdf")
     q = mech.assemble()
     springs = {n: 10.0 for n in list(mech.model.names)[1:]}
-    with pytest.raises(ParameterError, match="stiffness of joint 'mot1' must be finite and > 0"):
-        mech.compliance(q, {**springs, "mot1": float("inf")}, ["closedloop3D_1B"])
+    for bad in (0.0, float("inf")):
+        with pytest.raises(ParameterError, match="stiffness of joint 'mot1' must be finite and > 0"):
+            mech.compliance(q, {**springs, "mot1": bad}, ["closedloop3D_1B"])
     with pytest.raises(ParameterError, match="iterations: an integer >= 1, got 0"):
         mech.assemble(iterations=0)
 
