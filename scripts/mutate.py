@@ -294,13 +294,22 @@ def _compiles(m: Mutant) -> bool:
 
 
 # ------------------------------------------------------------------------------ running them
-def _locate(module: str) -> str | None:
+#: Where a default module's code went when it was split (h4pin 0.2: h4pin.mechanism).
+SPLIT = {"mechanism.py": ("core.py", "assembly.py")}
+
+
+def _locate(module: str) -> list[str]:
     """``module`` (a path in the repository), or the one file of its name under h4pin/ when it
-    has moved (a package reorganised); None when there is no such file, or several."""
+    has moved (a package reorganised), or the files it was split into; none when there is no such
+    file, or several."""
     if (ROOT / module).is_file():
-        return module
-    hits = sorted((ROOT / "h4pin").rglob(Path(module).name))
-    return str(hits[0].relative_to(ROOT)) if len(hits) == 1 else None
+        return [module]
+    found = []
+    for name in SPLIT.get(Path(module).name, (Path(module).name,)):
+        hits = sorted((ROOT / "h4pin").rglob(name))
+        if len(hits) == 1:
+            found.append(str(hits[0].relative_to(ROOT)))
+    return found
 
 
 def _subset(module: str) -> tuple[str, ...]:
@@ -311,15 +320,15 @@ def _resolve(names: list[str] | None) -> list[str]:
     known = {m: _locate(m) for m in MODULES}
     if not names:
         for m, where in known.items():
-            if where is None:
+            if not where:
                 print(f"mutate: {m} not found (moved?): left out; give it with --modules", file=sys.stderr)
-        return [w for w in known.values() if w is not None]
+        return [w for ws in known.values() for w in ws]
     out = []
     for n in names:
-        hits = [w for m, w in known.items() if w is not None and n in (m, w, Path(m).name, Path(m).stem)]
+        hits = [w for m, ws in known.items() for w in ws if n in (m, Path(m).name, Path(m).stem)
+                or n in (w, Path(w).name, Path(w).stem)]
         if not hits:
-            where = _locate(n) if n.endswith(".py") else _locate(f"{n}.py")
-            hits = [where] if where is not None else []
+            hits = _locate(n if n.endswith(".py") else f"{n}.py")
         if not hits:
             raise SystemExit(f"mutate: no module {n!r} (known: {', '.join(Path(m).stem for m in MODULES)}, "
                              "or a path in the repository)")
