@@ -240,3 +240,36 @@ def test_a_fit_that_cannot_converge_says_so():
         assert "fit" in str(exc)
     else:
         assert np.nanmax(np.abs(c.residuals)) > 1.0  # the error stays in the residuals, for all to see
+
+
+def test_the_command_calibrates_from_a_csv_and_writes_the_robot(tmp_path):
+    """``h4pin calibrate``: the tracker's CSV in, the stage table out with the nominal model's error
+    above the calibrated one's, the fitted offsets within 3 sigma of the truth, the calibrated URDF
+    and its sidecar written; a bad --spring is a usage error (exit 2) that writes nothing."""
+    from typer.testing import CliRunner
+
+    from h4pin.cli import app
+
+    mech = _five_bar()
+    meas, truth = _experiment(mech, {"base": None, "offsets": None, "springs": None}, SPRINGS, PRIOR, 40, 2e-4, seed=5)
+    csv = meas.to_csv(tmp_path / "tracker.csv", ("mot1", "mot2"))
+    robot = ROBOTS / "5bar_linkage_iso3d" / "robot.urdf"
+    springs = [f"--spring={j}={k}" for j, k in SPRINGS.items()]
+    out = tmp_path / "calibrated.urdf"
+    result = CliRunner().invoke(app, ["calibrate", "--robot", str(robot), "--measurements", str(csv),
+                                      "--stages", "base +offsets +springs:mot1|mot2|free1", *springs,
+                                      "--holdout", "0.2", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    rows = {line.split()[0]: line.split() for line in result.output.splitlines() if line.strip()}
+    assert out.exists() and out.with_suffix(".yaml").exists()
+    for joint in ("mot1", "mot2"):
+        value, std = float(rows[f"offsets/{joint}"][1]), float(rows[f"offsets/{joint}"][2])
+        assert abs(value - truth[f"offsets/{joint}"]) < 3.0 * std, (joint, value, std)
+    table = {line.split()[line.startswith("+ ")]: float(line.split()[-6])
+             for line in result.output.splitlines() if line.startswith(("nominal ", "base ", "+ "))}
+    assert list(table) == ["nominal", "base", "offsets", "springs"]
+    assert table["springs"] < 0.5 * table["nominal"], table
+    bad = CliRunner().invoke(app, ["calibrate", "--robot", str(robot), "--measurements", str(csv),
+                                   "--spring", "mot1", "--out", str(tmp_path / "no.urdf")])
+    assert bad.exit_code == 2 and "JOINT=K" in bad.output
+    assert not (tmp_path / "no.urdf").exists()

@@ -844,21 +844,34 @@ def stages(mech: Any, measurements: Measurements, steps: Sequence[Any], *, holdo
     """A stage-by-stage table, as users publish it: the nominal model, then a calibration with each
     step's groups added to the ones before (``[["base", "markers"], ["offsets"], ["geometry"],
     ["springs"], ["lateral"]]``), each fitted on the same samples and scored on the held-out ones
-    (``holdout``: a fraction, drawn with ``seed``, or indices); ``options`` as :func:`calibrate`."""
+    (``holdout``: a fraction, drawn with ``seed``, or indices); a step may name targets
+    (``{"geometry": ["free1"]}``); ``options`` as :func:`calibrate`."""
     fit_rows, held_rows = _rows(measurements.n, holdout, seed)
     train = measurements.subset(fit_rows)
     test = measurements.subset(held_rows) if held_rows.size else None
-    out, groups = [], []
+    out: list[Stage] = []
+    spec: dict[str, Any] = {}
     for step in [None, *steps]:
         if step is not None:
-            groups += [step] if isinstance(step, str) else list(step)
-        if not groups:
-            cal = _nominal(mech, train, options)
-        else:
-            cal = calibrate(mech, train, list(dict.fromkeys(groups)), **options)
+            _add_step(spec, step)
+        cal = calibrate(mech, train, dict(spec), **options) if spec else _nominal(mech, train, options)
         held = errors(cal.predict(**_commands(test)) - test.observed()) if test is not None else (math.nan,) * 3
-        out.append(Stage(tuple(dict.fromkeys(groups)) or ("nominal",), errors(cal.residuals), held, cal))
+        out.append(Stage(tuple(spec) or ("nominal",), errors(cal.residuals), held, cal))
     return out
+
+
+def _add_step(spec: dict[str, Any], step: Any) -> None:
+    """A stage's groups added to ``spec``: a group name, a list of names or ``{group: targets}``;
+    a group named again with targets adds them (``None``, all targets, stays all)."""
+    items = step.items() if isinstance(step, Mapping) else \
+        [(step, None)] if isinstance(step, str) else [(g, None) for g in step]
+    for group, targets in items:
+        if group in spec and (spec[group] is None or targets is None):
+            spec[group] = None
+        elif group in spec:
+            spec[group] = list(dict.fromkeys([*spec[group], *targets]))
+        else:
+            spec[group] = None if targets is None else list(targets)
 
 
 def _commands(meas: Measurements) -> dict[str, Any]:
@@ -889,15 +902,17 @@ def _nominal(mech: Any, meas: Measurements, options: Mapping[str, Any]) -> Calib
 
 
 def stage_table(rows: Sequence[Stage]) -> str:
-    """The stage table as text, errors in mm."""
+    """The stage table as text, errors in mm: a row a stage, named by the groups it adds."""
     head = f"{'stage':<44}{'fit mean':>10}{'std':>8}{'max':>8}{'held mean':>11}{'std':>8}{'max':>8}"
     lines = [head, "-" * len(head)]
+    before: tuple[str, ...] = ("nominal",)
     for r in rows:
-        name = " + ".join(r.groups)
+        added = [g for g in r.groups if g not in before]
+        name = "+ " + " + ".join(added) if before != ("nominal",) and added else " + ".join(r.groups)
+        before = r.groups
         f, h = (np.array(v) * 1e3 for v in (r.fit, r.held))
         lines.append(f"{name[:43]:<44}{f[0]:>10.3f}{f[1]:>8.3f}{f[2]:>8.3f}{h[0]:>11.3f}{h[1]:>8.3f}{h[2]:>8.3f}")
     return "\n".join(lines)
-
 
 
 def cross_validate(mech: Any, measurements: Measurements, parameters: Any, folds: int = 5, *, seed: int = 0,
