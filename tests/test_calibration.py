@@ -119,6 +119,42 @@ def test_the_jacobian_is_the_finite_difference_of_the_predictions():
         assert np.abs(jac[..., k] - fd).max() < 1e-6 * scale, params[k].name
 
 
+#: The Cassie-like leg (Gepetto): five motors, two 6D closures through rods on three-revolute ball
+#: joints; each rod's spin about itself strains nothing: one joint of each rod pair held rigid.
+LEG_LOCKED = ("foot_2_half_planta_rode_2_rev2", "tarsus_half_hachil_rode_rev2")
+LEG_SPRINGS = {"motor_hip1": 300.0, "motor_hip2": 300.0, "motor_tigh": 300.0, "motor_knee": 300.0,
+               "motor_ankle": 100.0}
+
+
+def _leg() -> Mechanism:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        return Mechanism.from_urdf(ROBOTS / "cassie_like" / "robot.urdf")
+
+
+def test_the_jacobian_of_a_closed_leg_with_held_joints():
+    """The Cassie-like leg (two 6D closures, joints held rigid in the equilibrium that the loops'
+    assembly still moves): the Jacobian of every group equals central differences (1e-6)."""
+    leg = _leg()
+    rng = np.random.default_rng(0)
+    meas = Measurements(motors=rng.uniform(-0.2, 0.2, (3, 5)), points={"foot": np.zeros((3, 3))},
+                        loads={"foot": rng.normal(0.0, 20.0, (3, 6))})
+    groups = {"base": None, "offsets": None, "springs": None, "masses": ["free_knee"], "geometry": ["free_ankle"]}
+    params = cal.parameters(leg, groups, LEG_SPRINGS, meas.markers, tuple(leg.actuated))
+    model = cal.Model(leg, meas, params, LEG_SPRINGS, True, LEG_LOCKED, pin.SE3.Identity())
+    x = model.x0 + 0.3 * model.sigma * rng.normal(size=len(params))
+    jac = model.jacobian(x, model.predict(x)[1]) * model.sigma
+    scale = np.abs(jac).max()
+    for k in range(len(params)):
+        h = 1e-6 * model.sigma[k]
+        up, down = x.copy(), x.copy()
+        up[k] += h
+        down[k] -= h
+        fd = (model.predict(up)[0] - model.predict(down)[0]) / (2 * h) * model.sigma[k]
+        assert np.abs(jac[..., k] - fd).max() < 1e-6 * scale, params[k].name
+        assert np.abs(fd).max() > 1e-4 * scale, params[k].name  # every parameter moves the foot
+
+
 def test_a_calibrated_robot_read_back_predicts_the_same_markers(fitted, tmp_path):
     """to_urdf, then Mechanism.from_urdf (its springs, elastic joints and gravity from the sidecar):
     the markers at the same motor positions, assembled and loaded, are where predict puts them

@@ -42,6 +42,7 @@ held ones (the noise estimated from the residuals unless given).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -53,6 +54,7 @@ from h4pin.errors import H4Error, ParameterError
 from h4pin.mechanism import fitting, loaded
 from h4pin.mechanism.engine import Insertion, VirtualJoint
 from h4pin.mechanism.measurements import Measurements
+from h4pin.mechanism.sensitivity import Sensitivity
 
 #: The parameter groups, in the order a stage table usually adds them.
 GROUPS = ("base", "markers", "offsets", "geometry", "springs", "lateral", "beams", "masses")
@@ -61,8 +63,6 @@ SIGMA = {"base": (0.1, 0.1), "markers": 0.01, "offsets": (0.05, 0.005), "geometr
          "springs": math.log(10.0), "lateral": math.log(100.0), "beams": math.log(10.0), "masses": (0.5, 0.05)}
 #: A lateral hinge's nominal stiffness: this times its joint's spring (or LATERAL_STIFFNESS).
 LATERAL_FACTOR, LATERAL_STIFFNESS = 10.0, 1e4
-#: Central-difference step of the rigid parameters' partial derivatives (m, rad).
-STEP = 1e-7
 #: Relative singular value under which a combination is not identified; and the standard deviation
 #: (in prior sigmas) the data alone leave a combination above which it is held at the prior: the
 #: data tell it less than a hundredth of what the prior does.
@@ -70,6 +70,9 @@ IDENTIFIABLE_TOL, HELD_STD = 1e-6, 10.0
 #: The fit's relative tolerance (SciPy's ftol, xtol, gtol): a cost a few hundred noise-scaled
 #: squares stops changing below a thousandth of one (a fraction of its statistical spread, ~1).
 TOL = 1e-6
+#: The most fits of one calibration: again from the solution while the noise's estimate or the
+#: identified combinations there change.
+ROUNDS = 4
 _AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 
@@ -225,10 +228,10 @@ class Robot:
     offsets: np.ndarray
 
 
-class Model:
+class Model(Sensitivity):
     """The forward model of a calibration (module docstring): the mechanism (lateral hinges
     inserted where asked), the measurements' commands and loads, the parameters; predicts the
-    markers of a parameter vector and their Jacobian."""
+    markers of a parameter vector; their Jacobian (:class:`~h4pin.mechanism.sensitivity.Sensitivity`)."""
 
     def __init__(self, mech: Any, meas: Measurements, params: Sequence[Parameter], springs: Mapping[str, float],
                  gravity: bool, locked: Sequence[str], base: pin.SE3):
@@ -344,256 +347,6 @@ class Model:
         return np.array(out), states
 
 
-    # -------------------------------------------------------------- the Jacobian
-    def _perturbed(self, rob: Robot, p: Parameter, h: float, local: int | None = None) -> pin.Model:
-        """The robot's model with a geometry parameter moved along its local axis ``local`` by h
-        (``M exp6(δ) exp6(h e)``), or a mass parameter by h, at fixed configuration."""
-        model = pin.Model(rob.mech.model)
-        j = int(model.getJointId(p.target))
-        if p.group == "geometry":
-            d = np.zeros(6)
-            d[p.index if local is None else local] = h
-            model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(pin.Motion(d[:3], d[3:]))
-        else:  # masses
-            inertia = model.inertias[j]
-            mass, lever = float(inertia.mass), np.array(inertia.lever)
-            if p.index == 0:
-                mass += h
-            else:
-                lever[p.index - 1] += h
-            model.inertias[j] = pin.Inertia(mass, lever, inertia.inertia)
-        return model
-
-    def _terms(self, rob: Robot, model: pin.Model, q: np.ndarray, eq: Any) -> tuple[np.ndarray, ...]:
-        """``(markers (m, 3) world, c, R + Aᵀμ (nv,) or None)`` of ``model`` at the fixed q: what
-        a geometry or mass parameter moves at fixed configuration (μ the equilibrium's, its rows
-        scaled as the equilibrium's problem scales them)."""
-        from h4pin.mechanism import assembly
-
-        d = model.createData()
-        pin.computeJointJacobians(model, d, q)
-        pin.updateFramePlacements(model, d)
-        world = np.array([d.oMf[f].act(rob.markers[n]) for f, n in zip(self.frames, self.meas.markers, strict=True)])
-        res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
-        length = 1.0 if eq is None else eq.problem.length
-        for cm in rob.mech.constraint_models:
-            r, jac, _ = assembly.closure_step(model, d, cm)
-            w = np.ones(len(r))
-            w[:3] = 1.0 / length
-            res.append(r * w)
-            rows.append(jac * w[:, None])
-        for c in rob.mech.couplings:
-            r, row = c.residual_row(model, q)
-            res.append(np.array([r]))
-            rows.append(row[None])
-        c, a = np.concatenate(res), np.vstack(rows)
-        if eq is None:
-            return world, c, None
-        p = eq.problem
-        force = eq.torques.copy()
-        for joint, place, w in p.loads.points:
-            force -= eq.load_factor * np.reshape(pin.getFrameJacobian(model, d, joint, place, pin.LOCAL_WORLD_ALIGNED),
-                                                 (6, model.nv)).T @ w
-        if p.loads.gravity:
-            force += eq.load_factor * pin.computeGeneralizedGravity(model, d, q)
-        return world, c, force + a.T @ eq.mu
-
-    def _point_jacobian(self, rob: Robot, d: pin.Data, f: int, marker: str) -> np.ndarray:
-        """(3, nv) the LOCAL_WORLD_ALIGNED Jacobian of a marker's point (Jacobians computed in d)."""
-        model = rob.mech.model
-        frame = model.frames[f]
-        jac = pin.getFrameJacobian(model, d, int(frame.parentJoint),
-                                   frame.placement * pin.SE3(np.eye(3), rob.markers[marker]), pin.LOCAL_WORLD_ALIGNED)
-        return np.reshape(jac, (6, model.nv))[:3]
-
-    def _mass_partials(self, rob: Robot, q: np.ndarray, eq: Any) -> dict[int, tuple[np.ndarray, ...]]:
-        """The mass parameters' ``(0, 0, dF)`` at q: a body's weight at its centre c (joint frame)
-        loads the joint by ``-Jᵀ [m g; m (R c) x g]`` (J its LOCAL_WORLD_ALIGNED joint Jacobian),
-        linear in m and in m c: the markers and the closures do not move."""
-        model = rob.mech.model
-        m = len(self.meas.markers)
-        if eq is None:  # no load: a mass moves nothing
-            return {k: (np.zeros((m, 3)), None, None) for k, p in enumerate(self.params) if p.group == "masses"}
-        d = model.createData()
-        pin.computeJointJacobians(model, d, q)
-        g = np.array(model.gravity.linear)
-        zero_c = np.zeros(len(eq.mu))
-        out: dict[int, tuple[np.ndarray, ...]] = {}
-        jacobians: dict[int, np.ndarray] = {}
-        for k, p in enumerate(self.params):
-            if p.group != "masses":
-                continue
-            if not eq.problem.loads.gravity:
-                out[k] = (np.zeros((m, 3)), zero_c, np.zeros(model.nv))
-                continue
-            j = int(model.getJointId(p.target))
-            if j not in jacobians:
-                jacobians[j] = np.reshape(pin.getJointJacobian(model, d, j, pin.LOCAL_WORLD_ALIGNED), (6, model.nv))
-            jac, rot, inertia = jacobians[j], d.oMi[j].rotation, model.inertias[j]
-            if p.index == 0:
-                wrench = np.r_[g, np.cross(rot @ np.array(inertia.lever), g)]
-            else:
-                wrench = np.r_[np.zeros(3), float(inertia.mass) * np.cross(rot[:, p.index - 1], g)]
-            out[k] = (np.zeros((m, 3)), zero_c, -eq.load_factor * jac.T @ wrench)
-        return out
-
-    def _partials(self, rob: Robot, x: np.ndarray, q: np.ndarray, eq: Any,
-                  masses: bool = True) -> dict[int, tuple[np.ndarray, ...]]:
-        """Each geometry and mass parameter's partial derivatives at the fixed q: ``(dx (m, 3),
-        dc, dF)``; a geometry parameter's by central differences through exp6's right Jacobian, a
-        mass parameter's in closed form (:meth:`_mass_partials`; none with ``masses=False``)."""
-        out: dict[int, tuple[np.ndarray, ...]] = {}
-        done: dict[str, list[tuple[np.ndarray, ...]]] = {}
-        if masses and any(p.group == "masses" for p in self.params):
-            out.update(self._mass_partials(rob, q, eq))
-        for k, p in enumerate(self.params):
-            if p.group == "geometry":
-                if p.target not in done:  # the six local directions of this joint, once
-                    cols = []
-                    for axis in range(6):
-                        plus = self._terms(rob, self._perturbed(rob, p, STEP, axis), q, eq)
-                        minus = self._terms(rob, self._perturbed(rob, p, -STEP, axis), q, eq)
-                        cols.append(tuple(None if a is None else (a - b) / (2 * STEP)
-                                          for a, b in zip(plus, minus, strict=True)))
-                    delta = np.array([x[i] for i, q_ in enumerate(self.params)
-                                      if q_.group == "geometry" and q_.target == p.target])
-                    jr = pin.Jexp6(pin.Motion(delta[:3], delta[3:])) if len(delta) == 6 else np.eye(6)
-                    done[p.target] = [tuple(None if cols[0][t] is None else
-                                            sum(jr[a, b] * cols[a][t] for a in range(6)) for t in range(3))
-                                      for b in range(6)]
-                out[k] = done[p.target][p.index]
-        return out
-
-    def jacobian(self, x: np.ndarray, states: Sequence[Any]) -> np.ndarray:
-        """(N, m, 3, P) the markers' derivatives in the parameters at x (module docstring): the
-        rest state's and the equilibrium's implicit differentiation, each term at the fixed
-        configuration by central differences of Pinocchio's kinematics and forces."""
-        rob = self.robot(x)
-        model = rob.mech.model
-        n, m, npar = len(states), len(self.frames), len(self.params)
-        out = np.zeros((n, m, 3, npar))
-        held = set()
-        for name in (*self.commanded, *rob.mech.beam_springs, *self.locked):
-            jm = model.joints[model.getJointId(name)]
-            held |= set(range(jm.idx_v, jm.idx_v + jm.nv))
-        passive = np.array([k for k in range(model.nv) if k not in held], dtype=int)
-        delta = np.array([x[k] for k, p in enumerate(self.params) if p.group == "base"])
-        motion = pin.Motion(delta[:3], delta[3:]) if len(delta) == 6 else pin.Motion.Zero()
-        tb = pin.exp6(motion)
-        jr_base = pin.Jexp6(motion)
-        for i, (rest, eq) in enumerate(states):
-            q = rest if eq is None else eq.q
-            d = model.createData()
-            pin.computeJointJacobians(model, d, q)
-            pin.updateFramePlacements(model, d)
-            jx = np.stack([self._point_jacobian(rob, d, f, mk) for f, mk in zip(self.frames, self.meas.markers,
-                                                                                  strict=True)])  # (m, 3, nv)
-            world = self._terms(rob, model, q, None)[0]
-            pre = (self.base0.act(w) for w in world)  # the markers before the base's correction
-            base_cols = np.array([tb.rotation @ np.c_[np.eye(3), -pin.skew(z)] @ jr_base for z in pre])  # (m, 3, 6)
-            partials = self._partials(rob, x, q, eq)
-            at_rest = partials if eq is None or not len(rob.mech.constraint_models) else \
-                self._partials(rob, x, rest, None, masses=False)
-            _, a_rest = self._closures(rob, model, rest)
-            pinv = np.linalg.pinv(a_rest[:, passive]) if a_rest.shape[0] and passive.size else None
-            solve = _Implicit(eq) if eq is not None else None
-            for k, p in enumerate(self.params):
-                if p.group == "base":
-                    out[i, :, :, k] = base_cols[:, :, p.index]
-                    continue
-                if p.group == "markers":
-                    mk = self.meas.markers.index(p.target)
-                    out[i, mk, :, k] = rb_col(rob, d.oMf[self.frames[mk]].rotation[:, p.index])
-                    continue
-                dx = np.zeros((m, 3))
-                dq_rest = np.zeros(model.nv)
-                if p.group == "offsets":
-                    dq_rest[model.joints[model.getJointId(p.target)].idx_v] = 1.0
-                if p.group in ("offsets", "geometry") and pinv is not None:
-                    dc = a_rest @ dq_rest + (at_rest[k][1] if p.group == "geometry" else 0.0)
-                    dq_rest[passive] -= pinv @ dc
-                if p.group in ("geometry", "masses"):
-                    dx = partials[k][0]
-                if solve is None:
-                    dq = dq_rest
-                else:
-                    df = partials[k][2] if k in partials else self._force_derivative(rob, p, eq)
-                    dq = solve(dq_rest, df, partials[k][1] if p.group == "geometry" else None)
-                out[i, :, :, k] = (dx + jx @ dq) @ rob.base.rotation.T
-        return out
-
-    def _closures(self, rob: Robot, model: pin.Model, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(c, A)``: the closures' and couplings' residuals and Jacobian at q (world, m and rad)."""
-        from h4pin.mechanism import assembly
-
-        d = model.createData()
-        pin.computeJointJacobians(model, d, q)
-        res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
-        for cm in rob.mech.constraint_models:
-            r, jac, _ = assembly.closure_step(model, d, cm)
-            res.append(r)
-            rows.append(jac)
-        for c in rob.mech.couplings:
-            r, row = c.residual_row(model, q)
-            res.append(np.array([r]))
-            rows.append(row[None])
-        return np.concatenate(res), np.vstack(rows)
-
-    def _force_derivative(self, rob: Robot, p: Parameter, eq: Any) -> np.ndarray:
-        """``∂(R + Aᵀμ)/∂p`` (nv,) at the equilibrium of a spring's (log) stiffness or a beam's
-        scale: the spring's own torque."""
-        model = rob.mech.model
-        out = np.zeros(model.nv)
-        names = [p.target] if p.group == "springs" else [f"{p.target}_lateral_{'ab'[p.index]}"] \
-            if p.group == "lateral" else [n for n in rob.mech.beam_springs if n.startswith(f"{p.target}_beam_")]
-        for name in names:
-            idx = model.joints[model.getJointId(name)].idx_v
-            out[idx] = eq.torques[idx]
-        return out
-
-
-def rb_col(rob: Robot, column: np.ndarray) -> np.ndarray:
-    """A world direction in the tracker's frame."""
-    return rob.base.rotation @ column
-
-
-class _Implicit:
-    """The equilibrium's sensitivity: for a parameter that moves the rest state by ``dq_rest``,
-    the forces at the fixed configuration by ``dF`` and the constraints by ``dc`` (scaled rows),
-    the equilibrium's ``dq`` from ``H dq + Aᵀ dμ = -(dF - K dq_rest)``, ``A dq = -dc`` on the free
-    coordinates, the held ones moving with the rest state."""
-
-    def __init__(self, eq: Any):
-        p = eq.problem
-        self.p, self.eq = p, eq
-        n, _, h = p.reduced(eq.q, eq.load_factor, eq.mu)
-        self.n, self.h = n, h
-        self.hr = n.T @ h @ n
-        _, a = p.constraints(eq.q)
-        self.a = a
-        self.free = np.flatnonzero(p.free)
-        self.held = np.flatnonzero(~p.free)
-        af = a[:, self.free] * p.col[self.free][None, :]
-        self.pinv = np.linalg.pinv(af) if af.shape[0] else None
-        self.rest_k = p.k.copy()  # the springs whose rest is the rest state (a file's springref stays)
-        for name in getattr(p.mech, "spring_rest", {}):
-            j = p.model.joints[p.model.getJointId(name)]
-            self.rest_k[j.idx_v:j.idx_v + j.nv] = 0.0
-
-    def __call__(self, dq_rest: np.ndarray, df: np.ndarray, dc: np.ndarray | None) -> np.ndarray:
-        p = self.p
-        dq = np.zeros(p.model.nv)
-        dq[self.held] = dq_rest[self.held]
-        b1 = -(df - self.rest_k * dq_rest) - self.h @ dq  # the springs' rest moves with the rest state
-        b2 = -(np.zeros(len(self.a)) if dc is None else dc) - self.a @ dq
-        if self.pinv is not None:
-            dq[self.free] += (self.pinv @ b2) * p.col[self.free]
-        if self.hr.size:
-            z = np.linalg.solve(self.hr, self.n.T @ (b1 - self.h @ (dq - np.where(p.free, 0.0, dq))))
-            dq = dq + self.n @ z
-        return dq
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class Calibration:
     """A calibrated mechanism (:func:`calibrate`).
@@ -695,51 +448,58 @@ def _prior(params: list[Parameter], prior: Mapping[str, Any] | None) -> list[Par
     return out
 
 
-def _fit(model: Model, noise: float, loss: str, iterations: int, start: np.ndarray | None = None,
-         nominal: tuple[Any, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
-                                                       tuple[Any, ...]]:
-    """The fit of ``model`` in the identified subspace from ``start`` (default the prior's
-    nominal): ``(x, s, vt, keep, cost, nominal)``, ``nominal`` the prediction and Jacobian at the
-    prior's nominal (given back to a second fit, not computed again)."""
+def _fit(model: Model, noise: float, loss: str, iterations: int, x: np.ndarray, at: tuple[Any, ...]
+         ) -> tuple[np.ndarray, float]:
+    """The fit of ``model`` from x in the combinations the data identify at x (``at``: x's
+    prediction, states and Jacobian), the others held where x has them: ``(x, cost)``."""
     obs = model.meas.observed()
     seen = np.isfinite(obs)
     x0, sig = model.x0, model.sigma
-    if nominal is None:
-        pred, states = model.predict(x0)
-        nominal = (pred, states, model.jacobian(x0, states)[seen])
-    jac0 = nominal[2] / noise
-    s, vt = fitting.combinations(jac0, sig)
-    keep = fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
+    jac_at = at[2] / noise
+    _, vt, keep = _split(at[2], noise, sig)
     v = vt[keep].T
-    w0 = np.zeros(v.shape[1]) if start is None else np.linalg.lstsq(v, (start - x0) / sig, rcond=None)[0]
-    # the nominal's prediction and Jacobian serve the fit's first step from there
-    cache: dict[bytes, Any] = {np.zeros(v.shape[1]).tobytes(): nominal[:2]}
+    base = (x - x0) / sig
+    w0 = v.T @ base
+    rest = base - v @ w0  # the held combinations stay where x has them (the prior's nominal, first)
+    cache: dict[bytes, Any] = {w0.tobytes(): at[:2]}
 
     def evaluate(w: np.ndarray) -> tuple[np.ndarray, list[Any]]:
         key = w.tobytes()
         if key not in cache:
             cache.clear()
-            x = x0 + sig * (v @ w)
             try:
-                cache[key] = model.predict(x)
+                cache[key] = model.predict(x0 + sig * (v @ w + rest))
             except H4Error:
                 cache[key] = (np.full_like(obs, 1e3), None)
         return cache[key]
 
     def fun(w: np.ndarray) -> np.ndarray:
         pred, _ = evaluate(w)
-        return np.r_[(pred - obs)[seen] / noise, w]
+        return np.r_[(pred - obs)[seen] / noise, v @ w + rest]
 
     def jac(w: np.ndarray) -> np.ndarray:
         pred, states = evaluate(w)
-        if states is None or not np.any(w):
-            return np.r_[jac0 * sig @ v, np.eye(len(w))]
-        j = model.jacobian(x0 + sig * (v @ w), states)[seen] / noise
-        return np.r_[j * sig @ v, np.eye(len(w))]
+        if states is None or np.array_equal(w, w0):
+            return np.r_[jac_at * sig @ v, v]
+        j = model.jacobian(x0 + sig * (v @ w + rest), states)[seen] / noise
+        return np.r_[j * sig @ v, v]
 
     sol = fitting.solve(fun, [w0], jac=jac, loss=loss, f_scale=3.0, max_nfev=iterations, tol=TOL)
-    x = x0 + sig * (v @ sol.x)
-    return x, s, vt, keep, sol.cost, nominal
+    return x0 + sig * (v @ sol.x + rest), sol.cost
+
+
+def _split(jac: np.ndarray, noise: float, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(s, vt, keep)``: the combinations of the Jacobian (the seen rows, m) in prior units at the
+    noise, and those the data identify."""
+    s, vt = fitting.combinations(jac / noise, sigma)
+    return s, vt, fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """Two identified subspaces (rows of orthonormal bases) are the same."""
+    if a.shape != b.shape:
+        return False
+    return not a.size or float(np.linalg.svd(a @ b.T, compute_uv=False).min()) > 1.0 - 1e-6
 
 
 def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", "markers"), *,
@@ -780,15 +540,29 @@ def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", 
     if noise is not None and not (isinstance(noise, (int, float)) and 0 < noise < 1):
         raise ParameterError(f"noise: a finite noise in m (0 < noise < 1), got {noise!r}")
     sigma = 1e-4 if noise is None else float(noise)
-    x, s, vt, keep, cost, nominal = _fit(model, sigma, loss, iterations)
-    if noise is None:  # the noise of the residuals; the fit again from there if it weighs the prior otherwise
-        pred, _ = model.predict(x)
-        res = (pred - measurements.observed())[np.isfinite(measurements.observed())]
-        estimate = float(np.sqrt(np.sum(res**2) / max(res.size - int(keep.sum()), 1)))
-        if not 0.5 < estimate / sigma < 2.0:
-            x, s, vt, keep, cost, _ = _fit(model, estimate, loss, iterations, x, nominal)
-        sigma = estimate
-    return _result(model, x, sigma, cost)
+    obs = measurements.observed()
+    seen = np.isfinite(obs)
+    x, cost = model.x0, math.inf
+    pred, states = model.predict(x)
+    at = (pred, states, model.jacobian(x, states)[seen])
+    # The fit in what the data identify at its start; again from its solution while the noise's
+    # estimate or the identified combinations there change (a non-linear model identifies more, or
+    # less, away from the nominal).
+    for _ in range(ROUNDS):
+        _, vt, keep = _split(at[2], sigma, model.sigma)
+        x, cost = _fit(model, sigma, loss, iterations, x, at)
+        pred, states = model.predict(x)
+        at = (pred, states, model.jacobian(x, states)[seen])
+        changed = False
+        if noise is None:  # the noise of the residuals; the fit again if it weighs the prior otherwise
+            res = (pred - obs)[seen]
+            estimate = float(np.sqrt(np.sum(res**2) / max(res.size - int(keep.sum()), 1)))
+            changed = not 0.5 < estimate / sigma < 2.0
+            sigma = estimate
+        _, vt_now, keep_now = _split(at[2], sigma, model.sigma)
+        if not changed and _same(vt[keep], vt_now[keep_now]):
+            break
+    return _result(model, x, sigma, cost, at)
 
 
 def _model(mech: Any, measurements: Measurements, parameters: Any, springs: Mapping[Any, Any] | None,
@@ -848,19 +622,116 @@ def synthetic(mech: Any, parameters: Any, markers: Sequence[str], *, motors: Any
     return meas, {p.name: p.value(v) for p, v in zip(model.params, truth, strict=True)}
 
 
+@dataclasses.dataclass(frozen=True)
+class Coverage:
+    """Repeated synthetic experiments (:func:`coverage`): is the stated uncertainty honest, and
+    what will the data identify?
+
+    Attributes:
+        names: the parameters. z: (runs, parameters) ``(fitted - truth) / std``.
+        identified: (runs, parameters) the data informed the parameter (its std under half its
+            prior sigma). rms: (runs,) the residuals' RMS per axis over the noise.
+        noise: (runs,) the estimated noise over the true one.
+        unidentifiable: each run's :attr:`Calibration.unidentifiable`. seconds: each fit's time.
+    """
+
+    names: tuple[str, ...]
+    z: np.ndarray
+    identified: np.ndarray
+    rms: np.ndarray
+    noise: np.ndarray
+    unidentifiable: tuple[tuple[str, ...], ...]
+    seconds: np.ndarray
+
+    @property
+    def fraction(self) -> float:
+        """The fraction of runs in which every parameter is within 3 std of the truth."""
+        return float(np.mean(np.all(np.abs(self.z) < 3.0, axis=1)))
+
+    def table(self) -> str:
+        """Per parameter: the runs within 3 std, identified, and the z's spread (honest: ~1)."""
+        lines = [f"{'parameter':<34}{'within 3 std':>13}{'identified':>11}{'z std':>8}"]
+        for k, n in enumerate(self.names):
+            lines.append(f"{n:<34}{np.mean(np.abs(self.z[:, k]) < 3.0):>13.0%}{np.mean(self.identified[:, k]):>11.0%}"
+                         f"{np.std(self.z[:, k]):>8.2f}")
+        lines.append(f"every parameter within 3 std: {self.fraction:.0%} of {len(self.z)} runs; residual RMS / noise "
+                     f"{np.mean(self.rms):.3f} (min {np.min(self.rms):.3f}, max {np.max(self.rms):.3f}); a fit "
+                     f"{np.mean(self.seconds):.1f} s")
+        return "\n".join(lines)
+
+
+def coverage(mech: Any, parameters: Any, markers: Sequence[str], *, runs: int = 50, seed: int = 0,
+             motors: Any = None, configurations: Any = None, loads: Mapping[str, Any] | None = None,
+             springs: Mapping[Any, Any] | None = None, prior: Mapping[str, Any] | None = None, noise: float = 1e-4,
+             gravity: bool = True, locked: Iterable[Any] = (), workers: int = 1, progress: bool = False,
+             **options: Any) -> Coverage:
+    """``runs`` synthetic experiments (:func:`synthetic`, seeds ``seed`` ...) of one design (the
+    commands and loads), each calibrated (:func:`calibrate`, ``options``; the noise estimated):
+    the coverage of the stated uncertainty, the parameters the design identifies, the residuals
+    against the noise. An experiment planned before the robot is measured. ``workers`` > 1 runs
+    them in that many forked processes (POSIX)."""
+    import multiprocessing
+
+    from tqdm import tqdm
+
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise ParameterError(f"runs: a positive integer, got {runs!r}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f"workers: a positive integer, got {workers!r}")
+    job = functools.partial(_coverage_run, mech, parameters, tuple(markers), motors, configurations, loads, noise,
+                            {"springs": springs, "prior": prior, "gravity": gravity, "locked": locked}, options)
+    seeds = range(seed, seed + runs)
+    if workers == 1 or "fork" not in multiprocessing.get_all_start_methods():
+        out = [job(s) for s in tqdm(seeds, desc="coverage", unit="run", disable=not progress)]
+    else:  # forked: the job (its mechanism is not picklable) inherited, the results sent back
+        global _JOB
+        _JOB = job
+        try:
+            with multiprocessing.get_context("fork").Pool(min(workers, runs)) as pool:
+                out = list(tqdm(pool.imap(_run_job, seeds), total=runs, desc="coverage", unit="run",
+                                disable=not progress))
+        finally:
+            _JOB = None
+    names = out[0][0]
+    return Coverage(names, *(np.array([o[k] for o in out]) for k in range(1, 5)),
+                    tuple(o[5] for o in out), np.array([o[6] for o in out]))
+
+
+_JOB: Any = None
+
+
+def _run_job(seed: int) -> tuple[Any, ...]:
+    return _JOB(seed)
+
+
+def _coverage_run(mech: Any, parameters: Any, markers: tuple[str, ...], motors: Any, configurations: Any,
+                  loads: Any, noise: float, common: dict[str, Any], options: dict[str, Any], seed: int
+                  ) -> tuple[Any, ...]:
+    """One run of :func:`coverage`: ``(names, z, identified, rms / noise, noise estimate / noise,
+    unidentifiable, seconds)``."""
+    import time
+
+    meas, truth = synthetic(mech, parameters, markers, motors=motors, configurations=configurations, loads=loads,
+                            noise=noise, seed=seed, **common)
+    start = time.perf_counter()
+    c = calibrate(mech, meas, parameters, **common, **options)
+    seconds = time.perf_counter() - start
+    names = tuple(truth)
+    sigma = {p.name: p.sigma * (c.values[p.name] if p.log else 1.0) for p in c.model.params}
+    res = c.residuals[np.isfinite(c.residuals)]
+    return (names, [(c.values[n] - truth[n]) / c.std[n] for n in names],
+            [c.std[n] < 0.5 * sigma[n] for n in names], float(np.sqrt(np.mean(res**2))) / noise, c.noise / noise,
+            c.unidentifiable, seconds)
+
 def parameters_of(mech: Any, spec: Mapping[str, Any], springs: Mapping[str, float], markers: Sequence[str],
                   commanded: Sequence[str]) -> list[Parameter]:
     """:func:`parameters` of a calibration, the lateral group's targets those inserted."""
     return parameters(mech, spec, springs, markers, commanded)
 
 
-def _result(model: Model, x: np.ndarray, noise: float, cost: float) -> Calibration:
-    pred, states = model.predict(x)
-    obs = model.meas.observed()
-    seen = np.isfinite(obs)
-    jac = model.jacobian(x, states)[seen] / noise
-    s, vt = fitting.combinations(jac, model.sigma)
-    keep = fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
+def _result(model: Model, x: np.ndarray, noise: float, cost: float, at: tuple[Any, ...]) -> Calibration:
+    pred, obs = at[0], model.meas.observed()
+    s, vt, keep = _split(at[2], noise, model.sigma)
     # The posterior in prior units: an identified combination's variance 1 / (s^2 + 1) (the data
     # and the prior), a held one's the prior's, 1: each parameter's std includes what is not known.
     var = np.where(keep, 1.0 / (s**2 + 1.0), 1.0)
@@ -1005,6 +876,6 @@ def cross_validate(mech: Any, measurements: Measurements, parameters: Any, folds
         out.append((errors(cal.residuals), errors(cal.held)))
     return out
 
-__all__ = ["GROUPS", "IDENTIFIABLE_TOL", "LATERAL_FACTOR", "LATERAL_STIFFNESS", "SIGMA", "STEP", "Calibration",
+__all__ = ["GROUPS", "IDENTIFIABLE_TOL", "LATERAL_FACTOR", "LATERAL_STIFFNESS", "SIGMA", "Calibration",
            "Model", "Parameter", "Robot", "Stage", "calibrate", "cross_validate", "errors", "parameters",
            "stage_table", "stages", "with_lateral"]
