@@ -24,7 +24,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from h4pin.errors import ConvergenceError
 
@@ -55,6 +54,8 @@ def solve(fun: Callable[[np.ndarray], np.ndarray], starts: Sequence[np.ndarray],
     Raises:
         ParameterError: an unknown ``loss``. ConvergenceError: every start failed.
     """
+    from scipy.optimize import least_squares  # here: importing h4pin does not load SciPy's optimizers
+
     from h4pin.errors import ParameterError
 
     if loss not in LOSSES:
