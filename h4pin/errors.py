@@ -9,7 +9,13 @@ from __future__ import annotations
 
 
 class H4Error(Exception):
-    """Base class of every error raised by h4pin."""
+    """Base class of every error raised by h4pin. Its message is one line: the line breaks a
+    value's repr brings (a 2-D array's) are made spaces."""
+
+    def __init__(self, *args: object):
+        if args and isinstance(args[0], str) and ("\n" in args[0] or "\r" in args[0]):
+            args = (" ".join(args[0].split()), *args[1:])
+        super().__init__(*args)
 
 
 class ParameterError(H4Error, ValueError):
@@ -18,6 +24,12 @@ class ParameterError(H4Error, ValueError):
 
 class MalformedURDFError(H4Error, ValueError):
     """A URDF cannot describe an H4: a closure, frame or spring datum is missing or inconsistent."""
+
+
+class InputFileError(ParameterError):
+    """An input file h4pin cannot read as one: missing, not a regular file (a FIFO, a device, a
+    folder, a socket: reading one could block forever or never end), larger than h4pin reads, or
+    unreadable; the message names the path and what it is (:func:`h4pin.files.read_input`)."""
 
 
 class LoadError(H4Error, ValueError):

@@ -20,6 +20,12 @@ h4pin knows (:data:`STORE_FORMATS`, :func:`store_format`), written when the stor
 other attribute counts (a user's store whose attributes say ``kind: atlas`` is the user's). Only
 ``--overwrite`` replaces another zarr store, and no other folder is ever replaced. One process at
 a time writes a store (:func:`store_lock`, a lock file beside it: :func:`take_lock`).
+
+Files h4pin reads (a robot's URDF, MJCF or sidecar, the files an MJCF names, a stored atlas) are
+regular files of a bounded size (:func:`check_input`, :func:`read_input`): a FIFO (which blocks
+its reader until a writer comes), a device (``/dev/zero`` never ends), a socket, a folder where a
+file is wanted or a file over :data:`INPUT_BYTES` is refused in one line naming the path and what
+it is, before anything opens it.
 """
 
 from __future__ import annotations
@@ -30,12 +36,14 @@ import json
 import os
 import re
 import shutil
+import stat
+import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from h4pin.errors import ParameterError
+from h4pin.errors import InputFileError, ParameterError
 
 TMP_TAG = "h4pin-tmp"
 #: What marks a binary file as h4pin's: a ``Comment`` text chunk of a PNG (:func:`save_figure`);
@@ -104,6 +112,9 @@ def check_output(path: str | Path, what: str, *, folder: bool = False, suffixes:
         raise ParameterError(f"{what} {path!s:.200}: {os.strerror(exc.errno) if exc.errno else exc}") from None
     except (UnicodeError, ValueError) as exc:
         raise ParameterError(f"{what} {path!r:.200}: not a usable file name ({exc})") from None
+    except TypeError:  # not a path: None, a number, bytes (give os.fsdecode(path))
+        raise ParameterError(f"{what}: a path (a str or a pathlib.Path), got {type(path).__name__} "
+                             f"{path!r:.100}") from None
 
 
 def _check_output(path: Path, what: str, folder: bool, suffixes: tuple[str, ...]) -> Path:
@@ -131,6 +142,127 @@ def _check_output(path: Path, what: str, folder: bool, suffixes: tuple[str, ...]
             reason += " (read-only?)"
         raise ParameterError(f"{what} {path}: cannot write in {parent}: {reason}") from None
     return path
+
+
+#: The largest robot description (URDF, MJCF, sidecar YAML) h4pin reads, in bytes (the largest of
+#: the corpus is under 1 MiB).
+INPUT_BYTES = 64 * 2**20
+#: The largest file an MJCF names (a mesh, a texture, a height field) h4pin lets MuJoCo read.
+ASSET_BYTES = 2**30
+
+
+def input_path(path: Any, what: str) -> Path:
+    """``path`` (a ``str`` or an ``os.PathLike``; a non-UTF-8 name as Python decodes it) as a
+    :class:`Path`; else a :class:`~h4pin.errors.ParameterError` naming ``what`` (a bytes path too:
+    give it as ``os.fsdecode(path)``)."""
+    if isinstance(path, (bytes, bytearray)):
+        raise ParameterError(f"{what}: a path as a str or a pathlib.Path, got bytes {path!r:.200} (give "
+                             "os.fsdecode(path))")
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(f"{what}: a path (a str or a pathlib.Path), got {type(path).__name__} {path!r:.100}")
+    try:
+        text = os.fspath(path)
+    except TypeError:  # a PathLike whose __fspath__ gives no path
+        raise ParameterError(f"{what}: a path-like object without a path, got {type(path).__name__}") from None
+    if not isinstance(text, str) or not text:
+        raise ParameterError(f"{what}: a path (a str), got {text!r:.100}")
+    return Path(text)
+
+
+def _kind(mode: int) -> str:
+    """What a file that is not a regular one is, for a message."""
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (a named pipe: reading it would wait for a writer)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device (reading it may never end)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    return "a special file"
+
+
+def check_input(path: Any, what: str, *, max_bytes: int = INPUT_BYTES, folder: bool = False) -> Path:
+    """``path`` as a :class:`Path` if it is a regular file of at most ``max_bytes`` (or, with
+    ``folder``, a folder), checked without opening it; else an
+    :class:`~h4pin.errors.InputFileError` naming ``what``, the path and what it is (missing, a
+    FIFO, a device, a socket, a folder, too large)."""
+    path = input_path(path, what)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputFileError(f"{what} {path}: no such file") from None
+    except OSError as exc:
+        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+    except ValueError as exc:  # a NUL byte in the name
+        raise InputFileError(f"{what} {path!r:.200}: not a usable file name ({exc})") from None
+    if folder and stat.S_ISDIR(st.st_mode):
+        return path
+    if not stat.S_ISREG(st.st_mode):
+        raise InputFileError(f"{what} {path} is {_kind(st.st_mode)}, not {'a folder' if folder else 'a regular file'}")
+    if folder:
+        raise InputFileError(f"{what} {path} is a file, not a folder")
+    if st.st_size > max_bytes:
+        raise InputFileError(f"{what} {path} is {st.st_size / 2**20:.1f} MiB, over the {max_bytes / 2**20:.0f} MiB "
+                             "h4pin reads as one")
+    return path
+
+
+def read_input(path: Any, what: str, max_bytes: int = INPUT_BYTES) -> bytes:
+    """The bytes of the regular file ``path`` (:func:`check_input`), at most ``max_bytes``: opened
+    without blocking and checked again once open (a file swapped for a FIFO meanwhile is refused
+    too), read to its end or to ``max_bytes + 1`` bytes (a file that grew past it is refused).
+
+    Raises:
+        InputFileError: as :func:`check_input`; it cannot be read (permissions, an I/O error).
+    """
+    path = check_input(path, what, max_bytes=max_bytes)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise InputFileError(f"{what} {path} is {_kind(mode)}, not a regular file")
+        chunks, size = [], 0
+        while size <= max_bytes:
+            chunk = os.read(fd, min(1 << 20, max_bytes + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+    finally:
+        os.close(fd)
+    if size > max_bytes:
+        raise InputFileError(f"{what} {path} is over the {max_bytes / 2**20:.0f} MiB h4pin reads as one")
+    return b"".join(chunks)
+
+
+@contextlib.contextmanager
+def captured_stderr() -> Iterator[list[str]]:
+    """Hold what C code (a C++ parser's console messages) writes on the process's standard error
+    (file descriptor 2) while the block runs; the list it gives receives that text, stripped,
+    when the block ends. Python's own ``sys.stderr`` is untouched. Meant for short calls: another
+    thread's C output meanwhile is held too."""
+    out: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no fd 2 (an embedded interpreter): nothing to hold
+        yield out
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield out
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            out.append(tmp.read(1 << 16).decode("utf-8", "replace").strip())
 
 
 def _png_marked(f: Any) -> bool:
@@ -235,7 +367,7 @@ def store_format(path: str | Path) -> str | None:
     return None
 
 
-def _not_ours(attrs: dict[str, Any], fmt: str) -> str:
+def not_ours(attrs: dict[str, Any], fmt: str) -> str:
     """Why a zarr store with attributes ``attrs`` is not an h4pin store of format ``fmt``, for a message."""
     tag = attrs.get(STORE_ATTR)
     if isinstance(tag, dict) and tag.get("format") in STORE_FORMATS:
@@ -268,7 +400,7 @@ def check_store_folder(path: Path, fmt: str, what: str, overwrite: bool = False)
                              "or writes into another folder)")
     if overwrite:
         return "foreign"
-    raise ParameterError(f"{what} {path} {_not_ours(attrs, fmt)}: give another path, or --overwrite to replace it")
+    raise ParameterError(f"{what} {path} {not_ours(attrs, fmt)}: give another path, or --overwrite to replace it")
 
 
 def take_lock(path: str | Path) -> bool:

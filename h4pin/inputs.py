@@ -95,10 +95,23 @@ def check_real(value: Any, name: str, *, finite: bool = True, minimum: float | N
     return x
 
 
+def _holds_bool(value: list | tuple) -> bool:
+    """Whether a (nested) list or tuple holds a bool (Python's or numpy's)."""
+    stack = [value]
+    while stack:
+        for x in stack.pop():
+            if isinstance(x, (bool, np.bool_)):
+                return True
+            if isinstance(x, (list, tuple)):
+                stack.append(x)
+    return False
+
+
 def real_array(value: Any, name: str, error: type[Exception] = PoseError, what: str = "real numbers") -> np.ndarray:
     """``value`` as a float64 array if it holds real numbers: integers or floats, in an array (not a
     masked one: its mask would be silently dropped), a list or a scalar; else ``error`` naming
-    ``name`` and what it got. Bools, text, ``None`` (object arrays) and complex numbers are refused.
+    ``name`` and what it got. Bools (a ``True`` among numbers in a list too), text, ``None``
+    (object arrays) and complex numbers are refused.
     The shape is the caller's to check; no copy when ``value`` already is a float64 ndarray."""
     if isinstance(value, np.ma.MaskedArray):
         raise error(f"{name} must be {what} in a plain array, not a masked array (its mask would be "
@@ -113,6 +126,8 @@ def real_array(value: Any, name: str, error: type[Exception] = PoseError, what: 
         except Exception:  # noqa: BLE001 - ragged lists (ValueError), objects whose __array__ fails, ...
             raise error(f"{name} must be {what}, got {describe(value)}") from None
     kind = arr.dtype.kind
+    if kind in REAL_KINDS and isinstance(value, (list, tuple)) and _holds_bool(value):
+        kind = "b"  # numpy reads [True, 0.5] as floats: a bool among numbers is refused all the same
     if kind not in REAL_KINDS:
         if kind == "c":
             what = f"{what} (not complex)"

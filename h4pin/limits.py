@@ -50,7 +50,26 @@ element m/N        0, or 1e-15 to 1e-2  a joint's or mount's compliance (0: off)
 element rad/(N.m)  0, or 1e-15 to 1     a shaft's or mount's rotational compliance (0: off)
 element N.m^2      1e-6 to 1e12, or inf a link's EI or GJ (inf: rigid, off); 1e12 is a steel
                                         beam a metre deep, 1e-6 a strand of hair
+robot length       abs(x) <= 1e3 m      a position in a robot file (a URDF origin, an MJCF
+                                        pos or anchor): a kilometre is past any robot, and
+                                        1e308 overflows every product with it
+motor angle        abs(a) <= 20 pi rad  a revolute motor's position on a grid or in an
+                                        assembly: ten turns either way
+motor travel       abs(s) <= 10 m       a prismatic motor's position
+timestep           1e-9 to 0.1 s        a MuJoCo time step (the elastic export's default is
+                                        5e-5 s, MuJoCo's 2e-3 s)
 =================  ===================  ==================================================
+
+:data:`BEAM_RANGES` holds a flexible link's (:class:`h4pin.mechanism.Beam`) section and material,
+SI: ``E`` and ``G`` 1e-6 to 1e25 Pa (as the spring data's E and G: a near-rigid stand-in passes),
+``A`` 1e-12 to 1e2 m^2, ``Iy``, ``Iz`` and ``J`` 1e-24 to 1e4 m^4 (``inf``: rigid that way), and
+the sizes of :meth:`~h4pin.mechanism.Beam.circle`, ``tube`` and ``rect`` (``d``, ``t``, ``b``,
+``h``) 1e-5 to 10 m (a wire of ten microns to a girder of ten metres, whose sections fall within
+the ranges above): a value of 1e-308 or 1e308 there makes the compliance fail in its linear
+algebra, a size of 1e200 overflows the section's fourth powers.
+
+Counts that are capped rather than refused: ``threads`` of a batch beyond :data:`MAX_THREADS`
+(a :class:`CappedWarning` says so).
 
 :data:`ELEMENT_RANGES` holds the element rows, by the kind's unit (checked by
 :func:`h4pin.description.elements.check_elements`: making :class:`h4pin.Elements`, reading a URDF,
@@ -85,6 +104,10 @@ class TooLargeError(ParameterError):
 class ImplausibleValueError(ParameterError):
     """A value outside its stated plausible range (:data:`h4pin.limits.RANGES`); the message
     names the value and the range."""
+
+
+class CappedWarning(UserWarning):
+    """A count over its maximum (``threads``) was capped to it; the message names both."""
 
 
 class NonFiniteResultWarning(RuntimeWarning):
@@ -170,8 +193,11 @@ def fmt_seconds(s: float) -> str:
 
 
 def fmt_count(n: int) -> str:
-    """A count for a message: ``12,345``, or ``1.6e+302`` once it has more than 15 digits."""
-    return f"{n:,}" if n < 10**15 else f"{float(n):.3g}"
+    """A count for a message: ``12,345``, or ``1.6e+302`` once it has more than 15 digits (past
+    the floats: ``over 1e+308``)."""
+    if n < 10**15:
+        return f"{n:,}"
+    return f"{float(n):.3g}" if n < 10**308 else "over 1e+308"
 
 
 def check_size(what: str, need: float, seconds: float | None = None, hint: str = "") -> None:
@@ -278,7 +304,22 @@ RANGES: dict[str, tuple[float, float, str, str]] = {
     "stroke centre": (-10.0, 10.0, "m", "a cycle's centre from the base"),
     "tool offset": (-10.0, 10.0, "m", "a tool point's offset from D"),
     "damping": (0.0, 1.0, "s", "stiffness-proportional damping (1e-4 s: 1 % at 32.7 Hz)"),
+    "robot length": (-1e3, 1e3, "m", "a position in a robot file"),
+    "motor angle": (-20 * math.pi, 20 * math.pi, "rad", "a revolute motor's position (ten turns either way)"),
+    "motor travel": (-10.0, 10.0, "m", "a prismatic motor's position"),
+    "timestep": (1e-9, 0.1, "s", "a MuJoCo time step"),
 }
+#: A flexible link's section and material (:class:`h4pin.mechanism.Beam`): name -> (low, high,
+#: unit, what); ``inf`` (rigid) is allowed where :class:`~h4pin.mechanism.Beam` allows it.
+BEAM_RANGES: dict[str, tuple[float, float, str, str]] = {
+    "E": (1e-6, 1e25, "Pa", "a Young's modulus"), "G": (1e-6, 1e25, "Pa", "a shear modulus"),
+    "A": (1e-12, 1e2, "m^2", "a section's area"), "Iy": (1e-24, 1e4, "m^4", "a second moment of area"),
+    "Iz": (1e-24, 1e4, "m^4", "a second moment of area"), "J": (1e-24, 1e4, "m^4", "a torsion constant"),
+    "d": (1e-5, 10.0, "m", "a section's size"), "t": (1e-5, 10.0, "m", "a section's size"),
+    "b": (1e-5, 10.0, "m", "a section's size"), "h": (1e-5, 10.0, "m", "a section's size"),
+}
+#: The most threads a batch runs on; more are capped to it, with a :class:`CappedWarning`.
+MAX_THREADS = 256
 #: Plausible ranges of the element data (:class:`h4pin.Elements`) by unit; 0 (a compliance) and
 #: inf (a rigidity) switch an element off and are always allowed.
 ELEMENT_RANGES: dict[str, tuple[float, float]] = {"m/N": (1e-15, 1e-2), "rad/(N.m)": (1e-15, 1.0),
@@ -311,6 +352,32 @@ def check_range(name: str, value: Any, kind: str) -> Any:
         raise ImplausibleValueError(f"{name} = {v:g}{_unit(unit)} is outside the plausible range {span}{_unit(unit)} "
                                     f"of {what} (h4pin.limits.RANGES)")
     return value
+
+
+def check_beam(name: str, value: float, where: str = "Beam") -> float:
+    """``value`` if within :data:`BEAM_RANGES` ``[name]`` (or ``inf`` where a rigid section is
+    allowed: the caller's check); else an :class:`ImplausibleValueError` naming it and the range."""
+    lo, hi, unit, what = BEAM_RANGES[name]
+    if not (lo <= value <= hi or value == math.inf):
+        raise ImplausibleValueError(f"{where}: {name} = {value:g} {unit} is outside the plausible range [{lo:g}, "
+                                    f"{hi:g}] {unit} of {what} (h4pin.limits.BEAM_RANGES)")
+    return value
+
+
+def check_threads(threads: Any, default: int) -> int:
+    """``threads`` as a count: ``default`` for None; an integer >= 1 (not a bool), capped to
+    :data:`MAX_THREADS` with a :class:`CappedWarning`; else a :class:`ParameterError`."""
+    if threads is None:
+        return default
+    if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ParameterError(f"threads: a count, an integer >= 1 (default: one per core), got {short(threads)}")
+    if threads > MAX_THREADS:
+        import warnings
+
+        warnings.warn(f"threads = {fmt_count(int(threads))} capped to {MAX_THREADS} (h4pin.limits.MAX_THREADS)",
+                      CappedWarning, stacklevel=3)
+        return MAX_THREADS
+    return int(threads)
 
 
 def check_springs(springs: Mapping[str, Any] | Any, where: str = "springs") -> None:
@@ -348,7 +415,8 @@ def warn_non_finite(what: str, bad: int, total: int, hint: str = "") -> None:
                       NonFiniteResultWarning, stacklevel=3)
 
 
-__all__ = ["ELEMENT_RANGES", "GiB", "ImplausibleValueError", "MEMORY_ENV", "MEMORY_FRACTION",
-           "NonFiniteResultWarning", "RANGES", "SPRING_RANGES", "TIME_ENV", "TooLargeError", "available_memory",
-           "check_cycle_samples", "check_elastic_cycle", "check_range", "check_size", "check_springs", "fmt_bytes",
-           "fmt_count", "fmt_seconds", "memory_limit", "time_limit", "warn_non_finite"]
+__all__ = ["BEAM_RANGES", "ELEMENT_RANGES", "MAX_THREADS", "CappedWarning", "GiB", "ImplausibleValueError",
+           "MEMORY_ENV", "MEMORY_FRACTION", "NonFiniteResultWarning", "RANGES", "SPRING_RANGES", "TIME_ENV",
+           "TooLargeError", "available_memory", "check_beam", "check_cycle_samples", "check_elastic_cycle",
+           "check_range", "check_size", "check_springs", "check_threads", "fmt_bytes", "fmt_count", "fmt_seconds",
+           "memory_limit", "time_limit", "warn_non_finite"]

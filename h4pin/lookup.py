@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import ParameterError
+from h4pin.inputs import real_array
 
 #: When several frames share a name, the one of the first of these types that has it.
 FRAME_TYPES = ("OP_FRAME", "BODY", "FIXED_JOINT", "JOINT", "SENSOR")
@@ -47,11 +48,9 @@ def frame_id(model: pin.Model, frame: str | int, kind: Any = None, what: str = "
 
 def finite_configuration(q: Any, nq: int, what: str = "q") -> np.ndarray:
     """``q`` as a finite float vector (nq,) (a copy), or a :class:`ParameterError` naming
-    ``what``: the shape it has, or the first coordinate that is not finite."""
-    try:
-        qv = np.array(q, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what} must be a configuration of {nq} numbers, got {q!r}") from None
+    ``what``: not real numbers (complex, bools, text), the shape it has, or the first coordinate
+    that is not finite."""
+    qv = np.array(real_array(q, what, ParameterError, f"a configuration of {nq} real numbers"))
     if qv.shape != (nq,):
         raise ParameterError(f"{what} must be a configuration of shape ({nq},), got shape {qv.shape}")
     bad = np.flatnonzero(~np.isfinite(qv))

@@ -244,10 +244,11 @@ def test_bad_beams_are_typed_errors():
     mech = Mechanism.from_urdf(ROBOTS / "5bar_linkage_iso3d" / "robot.urdf")
     for bad in (lambda: Beam(0, 1, 1, 1, 1, 1), lambda: Beam.circle(-1, 1, 1), lambda: Beam.tube(0.01, 0.006, 1, 1),
                 lambda: Beam(1, 1, 1, 1, 1, float("nan")), lambda: Beam("a", 1, 1, 1, 1, 1),
-                lambda: mech.with_beams({"nope": Beam.circle(0.01, **ALU)}), lambda: mech.with_beams({}),
+                lambda: mech.with_beams({"nope": Beam.circle(0.01, **ALU)}), lambda: mech.with_beams([]),
                 lambda: mech.with_beams({next(iter(_beamable(mech, Beam.circle(0.01, **ALU)))): 5})):
         with pytest.raises(H4Error):
             bad()
+    assert mech.with_beams({}) is mech  # no flexible link: the mechanism unchanged
 
 
 def test_the_h4_with_beams_on_its_forearms_and_bars_is_eq30():

@@ -18,7 +18,7 @@ from h4pin.errors import H4Error, MechanismWarning, ParameterError
 from h4pin.limits import TooLargeError
 from h4pin.mechanism import Beam, FrameOutput, JointOutput, Mechanism, Payload
 from h4pin.mechanism import compiled as cp
-from h4pin.mechanism.engine import UnassembledError, UnrestrainedMotionError
+from h4pin.mechanism.engine import CLOSURE_TOL, UnassembledError, UnrestrainedMotionError
 
 yaml = pytest.importorskip("yaml")
 
@@ -242,3 +242,40 @@ def test_compiled_equals_pinocchio_on_the_mjcf_corpus(path):
            mech.compliance(q, springs, outs, method="pinocchio"), 1e-12)
     _same_frequencies(mech.modes(np.array([q]), springs, method="compiled").frequencies[0],
                       mech.modes(q, springs, method="pinocchio").frequencies[:4])
+
+
+def test_coupling_rows_over_a_batch_equal_the_per_configuration_loop():
+    """The couplings' rows the compiled path takes, built over the whole batch at once
+    (batch.coupling_batch, JointCoupling.residual_rows), are residual_row's at each configuration
+    to 1e-14, with the same verdicts: the corpus's SoftFoot (45 couplings) at random
+    configurations (most off its couplings), and quartic couplings (with and without a second
+    joint, off their origins) on the synthetic MJCF."""
+    pytest.importorskip("mujoco")
+    if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
+        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+    from h4pin.mechanism import batch
+    from h4pin.mechanism.couplings import JointCoupling
+
+    rng = np.random.default_rng(3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MechanismWarning)
+        foot = Mechanism.from_mjcf(HERE / "mjcf" / "iit_softfoot" / "softfoot.xml")
+        q = foot.assemble()
+    Q = q + rng.normal(scale=0.05, size=(200, len(q))) * (rng.random((200, 1)) < 0.7)
+    rows, off = batch.coupling_batch(foot, Q)
+    assert rows.shape == (200, 45, foot.model.nv)
+    for i, qi in enumerate(Q):
+        loop = [c.residual_row(foot.model, qi) for c in foot.couplings]
+        np.testing.assert_allclose(rows[i], [r for _, r in loop], rtol=0, atol=1e-14)
+        assert off[i] == any(not abs(res) <= CLOSURE_TOL for res, _ in loop)
+    assert 0 < off.sum() < len(Q)
+
+    loop_model = Mechanism.from_mjcf(HERE / "synthetic" / "coupled.xml").model
+    Q = rng.uniform(-2, 2, size=(100, loop_model.nq))
+    for c in (JointCoupling("rocker_pitch", "coupler_roll", (0.1, 0.9, -0.3, 0.05, 0.02), 0.2, -0.1),
+              JointCoupling("tilt", None, (0.3,), 0.05)):
+        res, rows = c.residual_rows(loop_model, Q)
+        for i, qi in enumerate(Q):
+            want_res, want_row = c.residual_row(loop_model, qi)
+            assert abs(res[i] - want_res) <= 1e-14 * max(1.0, abs(want_res))
+            np.testing.assert_allclose(rows[i], want_row, rtol=1e-14, atol=1e-14)

@@ -114,11 +114,11 @@ def test_a_tendon_motor_is_fine_when_the_motors_are_given():
 
 
 def test_files_the_readers_cannot_read_are_typed_errors(tmp_path):
-    from h4pin.errors import MalformedURDFError
+    from h4pin.errors import InputFileError, MalformedURDFError
 
     bad = tmp_path / "bad.xml"
     bad.write_text("<mujoco><worldbody><body><joint type='nonsense'/></body></worldbody></mujoco>")
     with pytest.raises(MalformedURDFError, match="bad.xml"):
         Mechanism.from_mjcf(bad)
-    with pytest.raises(MalformedURDFError, match="nothing.xml"):
+    with pytest.raises(InputFileError, match="nothing.xml: no such file"):
         Mechanism.from_mjcf(tmp_path / "nothing.xml")

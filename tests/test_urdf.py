@@ -104,13 +104,21 @@ def test_malformed_urdf_is_a_clear_error(text, message, tmp_path):
 
 
 @pytest.mark.parametrize(("data", "message"), [(b"\x89PNG\r\n\x1a\n\0\0", "binary"),
-                                               (to_urdf(H4Params()).encode("utf-16"), "binary|UTF-8"),
+                                               (to_urdf(H4Params()).encode("utf-16-le"), "binary"),
                                                ("<robot name='\xe9'/>".encode("latin-1"), "not UTF-8")])
 def test_binary_or_non_utf8_files_are_refused(tmp_path, data, message):
     path = tmp_path / "bad.urdf"
     path.write_bytes(data)
     with pytest.raises(MalformedURDFError, match=message):
         h4pin.load(path)
+
+
+def test_a_urdf_in_utf16_with_its_byte_order_mark_is_the_same_robot(tmp_path):
+    """UTF-16 (its byte-order mark says so) is XML text as UTF-8 is: the same robot
+    (h4pin.mechanism.urdf_reader.decode, shared with Mechanism.from_urdf)."""
+    path = tmp_path / "h4.urdf"
+    path.write_bytes(to_urdf(H4Params()).encode("utf-16"))
+    assert h4pin.load(path).params == h4pin.load(H4Params()).params
 
 
 def test_existing_file_is_a_path_and_names_are_variants(tmp_path, monkeypatch):

@@ -126,6 +126,19 @@ def atlas(
 
 
 
+def check_threads(threads: int | None) -> int | None:
+    """``--threads``: a count >= 1 (else one line, exit 2), capped to
+    :data:`h4pin.limits.MAX_THREADS` with a one-line warning."""
+    from h4pin.limits import MAX_THREADS
+
+    if threads is not None and threads < 1:
+        fail(f"--threads must be a count >= 1 (default: one per core), got {threads}")
+    if threads is not None and threads > MAX_THREADS:
+        typer.echo(f"warning: --threads {threads} capped to {MAX_THREADS} (h4pin.limits.MAX_THREADS)", err=True)
+        return MAX_THREADS
+    return threads
+
+
 def parse_motors(values: list[str]) -> dict[str, tuple[float, float, int]]:
     """``--motor NAME=LO:HI:N`` options as ``{name: (lo, hi, n)}``."""
     out = {}
@@ -157,6 +170,7 @@ def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: l
 
     if output is None:
         fail("--robot needs --output FRAME (the frame whose compliance is mapped)")
+    threads = check_threads(threads)
     grid = parse_motors(motor)
     store.check_out(out, "--out")
     check_replace(out, "--out", overwrite)

@@ -172,10 +172,10 @@ def given(ctx: typer.Context, name: str) -> bool:
 
 def load_mechanism(robot: Path, sidecar: Path | None):
     """The :class:`h4pin.mechanism.Mechanism` of ``--robot`` (a URDF and its sidecar, or an MJCF)."""
+    from h4pin.files import check_input
     from h4pin.mechanism import Mechanism
 
-    if not robot.is_file():
-        fail(f"--robot: no file {robot}")
+    check_input(robot, "--robot")  # a FIFO, a device or a folder refused by name
     if robot.suffix.lower() == ".xml":
         if sidecar is not None:
             fail("--sidecar goes with a URDF (an MJCF file holds its closures)")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from h4pin.cli.common import OVERWRITE, URDF, VARIANT, Variant, fail, is_number, load_robot, wrote
+from h4pin.cli.common import OVERWRITE, URDF, VARIANT, Variant, fail, is_number, load_mechanism, load_robot, wrote
 
 
 def export(
@@ -67,17 +67,13 @@ def _export_mechanism(robot: Path, sidecar: Path | None, spring: list[str] | Non
                       timestep: float, out: Path, overwrite: bool) -> Path:
     """``h4pin export --robot``: the mechanism of a URDF (and sidecar) or MJCF file, assembled
     from its reference configuration, written by ``Mechanism.to_mjcf``."""
-    from h4pin.mechanism import Mechanism
-
     springs: dict[str, float] = {}
     for item in spring or []:
         joint, _, value = item.partition("=")
         if not joint or not is_number(value):
             fail(f"--spring takes JOINT=K (K in N.m/rad or N/m), got {item!r}")
         springs[joint] = float(value)
-    if not robot.is_file():
-        fail(f"--robot {robot}: no such file")
-    mech = Mechanism.from_mjcf(robot) if robot.suffix.lower() == ".xml" else Mechanism.from_urdf(robot, sidecar)
+    mech = load_mechanism(robot, sidecar)
     return mech.to_mjcf(out, springs or dict(mech.springs), mech.assemble(), sites=sites, timestep=timestep,
                         overwrite=overwrite)
 

@@ -179,7 +179,7 @@ def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atla
     from h4pin.mechanism import atlas as motor_atlas
     from h4pin.mechanism import scene, store
 
-    ds = store.open_store(atlas_path) if atlas_path is not None else None
+    ds = store.open_store(atlas_path, "--atlas") if atlas_path is not None else None
     if ds is None and output is None:
         fail("--robot needs --output FRAME (or --atlas PATH, whose output frame is drawn)")
     mech = load_mechanism(robot, sidecar)

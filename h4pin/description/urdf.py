@@ -43,7 +43,6 @@ section Sb; the plate is aluminium rods; each universal-joint cross is a 20 g st
 from __future__ import annotations
 
 import dataclasses
-import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +53,11 @@ from h4pin.description.geometry import ACTUATOR_LIMITS, LATERAL_LIMITS
 from h4pin.description.params import LEG_LATERAL, H4Params
 from h4pin.errors import MalformedURDFError
 from h4pin.files import write_text
+from h4pin.mechanism.urdf_reader import attribute as _attr
+from h4pin.mechanism.urdf_reader import check_tree as _check_tree
+from h4pin.mechanism.urdf_reader import decode  # noqa: F401  (h4pin.robot reads a URDF's bytes with it)
+from h4pin.mechanism.urdf_reader import floats as _floats
+from h4pin.mechanism.urdf_reader import parse as _parse
 
 FORMAT_VERSION = "2"
 RHO_ALUMINIUM = 2700.0  # kg/m^3
@@ -439,102 +443,6 @@ class URDFExtras:
     closures: list[Closure]
     springs: dict[str, dict[str, float]]
     joint_child: dict[str, str]
-
-
-def decode(data: bytes, where: str) -> str:
-    """URDF bytes as text; binary or non-UTF-8 content is a :class:`MalformedURDFError`."""
-    if b"\0" in data:
-        raise MalformedURDFError(f"{where}: a binary file, not a URDF (XML text)")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise MalformedURDFError(f"{where}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-
-
-def _parse(text: str, where: str) -> ET.Element:
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise MalformedURDFError(f"{where}: not well-formed XML ({exc})") from None
-    if root.tag != "robot":
-        raise MalformedURDFError(f"{where}: the root element is <{root.tag}>, not <robot>")
-    return root
-
-
-def _attr(elem: ET.Element | None, key: str, where: str, what: str) -> str:
-    if elem is None or elem.get(key) is None:
-        raise MalformedURDFError(f"{where}: {what} is missing attribute '{key}'")
-    return elem.get(key)  # type: ignore[return-value]
-
-
-def _floats(text: str, n: int, where: str, what: str) -> np.ndarray:
-    try:
-        v = np.array([float(t) for t in text.split()])
-    except ValueError:
-        raise MalformedURDFError(f"{where}: {what} = {text!r} is not a list of numbers") from None
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise MalformedURDFError(f"{where}: {what} = {text!r} must be {n} finite numbers")
-    return v
-
-
-def _check_tree(root: ET.Element, where: str) -> None:
-    """The checks Pinocchio's URDF parser would fail on with a bare message (or pass silently):
-    duplicate link or joint names, origins, axes, limits and inertias that are not finite and
-    physical. Each error names the element."""
-    for kind in ("link", "joint"):
-        seen: set[str] = set()
-        for elem in root.findall(kind):
-            name = _attr(elem, "name", where, f"a <{kind}>")
-            if name in seen:
-                raise MalformedURDFError(f"{where}: two <{kind}> elements are named '{name}'")
-            seen.add(name)
-    links = {elem.get("name") for elem in root.findall("link")}
-    for j in root.findall("joint"):
-        for side in ("parent", "child"):
-            ref = j.find(side)
-            link = None if ref is None else ref.get("link")
-            if link not in links:
-                raise MalformedURDFError(f"{where}: joint '{j.get('name')}' names {side} link '{link}', which is not a "
-                                         "<link> of the file")
-    for parent in root.iter():
-        for elem in parent:
-            if elem.tag == "origin" or elem.tag.endswith("_origin"):
-                for key in ("xyz", "rpy"):
-                    if elem.get(key) is not None:
-                        _floats(elem.get(key), 3, where, f"<{elem.tag} {key}> in <{parent.tag}> "
-                                f"'{parent.get('name') or '?'}'")
-    for j in root.findall("joint"):
-        name, kind = j.get("name"), j.get("type")
-        axis = j.find("axis")
-        if kind in ("revolute", "continuous", "prismatic") and axis is not None:
-            a = _floats(axis.get("xyz", "1 0 0"), 3, where, f"<axis xyz> of joint '{name}'")
-            if not np.linalg.norm(a) > 1e-9:
-                raise MalformedURDFError(f"{where}: joint '{name}' has a zero <axis xyz=\"{axis.get('xyz')}\">")
-        limit = j.find("limit")
-        if limit is not None and kind in ("revolute", "prismatic"):
-            lo = _floats(limit.get("lower", "0"), 1, where, f"<limit lower> of joint '{name}'")[0]
-            hi = _floats(limit.get("upper", "0"), 1, where, f"<limit upper> of joint '{name}'")[0]
-            if lo > hi:
-                raise MalformedURDFError(f"{where}: joint '{name}' has <limit lower=\"{lo:g}\"> above upper=\"{hi:g}\"")
-    for link in root.findall("link"):
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        name = link.get("name")
-        mass = inertial.find("mass")
-        if mass is not None:
-            m = _floats(mass.get("value", "0"), 1, where, f"<mass value> of link '{name}'")[0]
-            if m < 0:
-                raise MalformedURDFError(f"{where}: link '{name}' has a negative <mass value=\"{m:g}\">")
-        inertia = inertial.find("inertia")
-        if inertia is not None:
-            keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-            v = {k: _floats(inertia.get(k, "0"), 1, where, f"<inertia {k}> of link '{name}'")[0] for k in keys}
-            tensor = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
-                               [v["ixz"], v["iyz"], v["izz"]]])
-            if np.linalg.eigvalsh(tensor).min() < -1e-12 * max(np.abs(tensor).max(), 1e-300):
-                raise MalformedURDFError(f"{where}: link '{name}' has an <inertia> that is not positive "
-                                         "semi-definite")
 
 
 def parse(text: str, where: str = "URDF") -> URDFExtras:

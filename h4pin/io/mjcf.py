@@ -278,16 +278,14 @@ def elastic_spec(h4: Any, name: str | None = None, q: np.ndarray | None = None, 
 
     Raises:
         MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO_ELASTIC`.
-        ParameterError: as :func:`spec`, or a damping < 0 or a time step <= 0.
+        ParameterError: as :func:`spec`, or a damping or a time step that is not a real number
+            within its plausible range (:func:`h4pin.mechanism.mjcf_writer.check_settings`).
     """
     from h4pin.elastic import elastic_model
 
     _mujoco(MIN_MUJOCO_ELASTIC, "the elastic MuJoCo export (h4pin.io.mjcf.elastic_spec)")
 
-    if not (np.isfinite(damping) and damping >= 0):
-        raise ParameterError(f"damping: must be finite and >= 0 (s), got {damping!r}")
-    if not (np.isfinite(timestep) and timestep > 0):
-        raise ParameterError(f"timestep: must be finite and > 0 (s), got {timestep!r}")
+    damping, timestep = mw.check_settings(damping, timestep)
     payload = float(limits.check_range("payload", payload, "payload"))
     q = _closed(h4, q)
     plan = _plan(h4, elastic_model(h4), q, float(damping), float(timestep), bool(servo))

@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from h4pin import limits
 from h4pin.errors import H4Error, MechanismWarning, ParameterError, located
+from h4pin.inputs import real_array
 from h4pin.mechanism import engine
 from h4pin.mechanism.arguments import joint_names
 from h4pin.mechanism.engine import UnassembledError
@@ -32,8 +33,8 @@ ASSEMBLY_TOL = 1e-10
 def assemble(mech: Any, q: Any, motors: Any, fixed: Iterable[Any] | None, tol: float,
              iterations: int) -> np.ndarray:
     """:meth:`Mechanism.assemble <h4pin.mechanism.Mechanism.assemble>`."""
-    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not (0 < tol < math.inf):
-        raise ParameterError(f"tol: a finite tolerance > 0 (m, rad), got {tol!r}")
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not (0 < tol < 1e300):
+        raise ParameterError(f"tol: a finite tolerance > 0 (m, rad), got {tol!r:.60}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ParameterError(f"iterations: an integer >= 1, got {iterations!r}")
     model = mech.model
@@ -208,6 +209,13 @@ def closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np
 
 
 
+def motor_range(model: pin.Model, name: str) -> str:
+    """The plausible range (:data:`h4pin.limits.RANGES`) of the position of the one-coordinate
+    motor ``name``: ``"motor travel"`` (m) for a prismatic joint, ``"motor angle"`` (rad) else."""
+    kind = model.joints[model.getJointId(name)].shortname()
+    return "motor travel" if "Prismatic" in kind or kind.startswith("JointModelP") else "motor angle"
+
+
 def assemble_motors(mech: Any, start: np.ndarray, motors: Any, close: Any) -> tuple[np.ndarray, bool]:
     """Configurations with the motors at ``motors`` ((n_act,) or (N, n_act), in
     ``mech.actuated`` order), each closed from the one before (continuation; the first from
@@ -220,10 +228,11 @@ def assemble_motors(mech: Any, start: np.ndarray, motors: Any, close: Any) -> tu
             raise ParameterError(f"motors: motor joint {name!r} has {j.nq} coordinates; only one-coordinate motors "
                                  "can be set by value (use assemble(q, fixed=...))")
         idx.append(j.idx_q)
-    try:
-        m = np.asarray(motors, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"motors: numbers, shape ({len(idx)},) or (N, {len(idx)}), got {motors!r}") from None
+    rows = len(motors) if np.ndim(motors) == 2 else 1  # from the shape: nothing is copied before the estimate
+    limits.check_size(f"{mech.name}: assembly at {limits.fmt_count(rows)} motor positions",
+                      rows * 8 * (model.nq + 2 * len(idx)), rows / 200.0)
+    m = real_array(motors, "motors", ParameterError, f"motor positions, real numbers of shape ({len(idx)},) or "
+                   f"(N, {len(idx)})")
     one = m.ndim == 1
     m = np.atleast_2d(m)
     if m.ndim != 2 or m.shape[1] != len(idx) or len(m) == 0:
@@ -232,8 +241,8 @@ def assemble_motors(mech: Any, start: np.ndarray, motors: Any, close: Any) -> tu
     bad = np.flatnonzero(~np.all(np.isfinite(m), axis=1))
     if bad.size:
         raise ParameterError(f"motors[{bad[0]}]: not finite ({m[bad[0]].tolist()})")
-    limits.check_size(f"{mech.name}: assembly at {len(m):,} motor positions", len(m) * 8 * (model.nq + 2 * len(idx)),
-                      len(m) / 200.0)
+    for k, name in enumerate(mech.actuated):
+        limits.check_range(f"motors: {name!r}", m[:, k], motor_range(model, name))
     out = np.zeros((len(m), model.nq))
     q = np.array(start)
     for i, row in enumerate(m):

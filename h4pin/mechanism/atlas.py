@@ -65,8 +65,12 @@ import xarray as xr  # noqa: E402
 
 from h4pin import limits  # noqa: E402
 from h4pin.errors import H4Error, ParameterError  # noqa: E402
+from h4pin.files import input_path  # noqa: E402
+from h4pin.inputs import check_real  # noqa: E402
 from h4pin.mechanism import store  # noqa: E402
 from h4pin.mechanism.arguments import checked_springs  # noqa: E402
+from h4pin.mechanism.assembly import motor_range  # noqa: E402
+from h4pin.mechanism.batch import check_threads  # noqa: E402
 from h4pin.mechanism.core import Mechanism  # noqa: E402
 from h4pin.mechanism.engine import UnassembledError  # noqa: E402
 
@@ -131,7 +135,7 @@ def default_springs(mech: Mechanism, motor_stiffness: float = MOTOR_STIFFNESS,
         ParameterError: a stiffness that is not finite > 0 (or >= 0 for ``joint_stiffness``).
     """
     for name, k, zero in (("motor_stiffness", motor_stiffness, False), ("joint_stiffness", joint_stiffness, True)):
-        if (isinstance(k, bool) or not isinstance(k, (int, float, np.floating)) or not (0 <= k < math.inf)
+        if (isinstance(k, bool) or not isinstance(k, (int, float, np.floating)) or not (0 <= k < 1e300)
                 or (k == 0 and not zero)):
             raise ParameterError(f"{name}: a finite stiffness {'>= 0' if zero else '> 0'} (N.m/rad, N/m), got {k!r}")
     if mech.springs:
@@ -166,9 +170,13 @@ def motor_axes(mech: Mechanism, grid: Mapping[str, Any] | None = None, reference
     points (default :data:`DEFAULT_COUNTS`).
 
     Raises:
-        ParameterError: an unknown motor, a bad axis (not finite, empty, count < 1).
+        ParameterError: an unknown motor, a bad axis (not finite, empty, count < 1), a position
+            beyond the plausible range of a motor (:data:`h4pin.limits.RANGES`: ``motor angle``,
+            ten turns either way, for a revolute motor; ``motor travel``, 10 m, for a prismatic one).
     """
     idx = _motor_index(mech)
+    if grid is not None and not isinstance(grid, Mapping):
+        raise ParameterError(f"grid: a mapping {{motor: (lower, upper, count) or values}}, got {grid!r:.100}")
     grid = dict(grid or {})
     unknown = sorted(set(grid) - set(mech.actuated))
     if unknown:
@@ -186,10 +194,10 @@ def motor_axes(mech: Mechanism, grid: Mapping[str, Any] | None = None, reference
             else:
                 if reference is None:
                     reference = mech.assemble()
-                kind = mech.model.joints[mech.model.getJointId(name)].shortname()
-                span = PRISMATIC_SPAN if "Prismatic" in kind or kind.startswith("JointModelP") else REVOLUTE_SPAN
+                span = PRISMATIC_SPAN if motor_range(mech.model, name) == "motor travel" else REVOLUTE_SPAN
                 spec = (reference[i] - span, reference[i] + span, n)
         out[name] = _axis(name, spec)
+        limits.check_range(f"grid {name!r}", out[name], motor_range(mech.model, name))
     return out
 
 
@@ -198,12 +206,14 @@ def _axis(name: str, spec: Any) -> np.ndarray:
         lo, hi, n = spec
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ParameterError(f"grid {name!r}: (lower, upper, count) with an integer count >= 1, got {spec!r}")
+        limits.check_size(f"grid {name!r}: {limits.fmt_count(int(n))} points", 8 * limits.count(n))
+        lo, hi = (check_real(v, f"grid {name!r}: a bound", finite=False) for v in (lo, hi))
         if not (np.isfinite(lo) and np.isfinite(hi)) or (n > 1 and not lo < hi):
             raise ParameterError(f"grid {name!r}: finite lower < upper, got {spec!r}")
         return np.linspace(float(lo), float(hi), int(n))
     try:
         a = np.atleast_1d(np.asarray(spec, dtype=float))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         a = np.empty((0, 0))
     if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
         raise ParameterError(f"grid {name!r}: (lower, upper, count) or a non-empty 1-D array of finite values, "
@@ -446,7 +456,8 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
             ``payload`` kg at the output, the loaded equilibrium (:meth:`Mechanism.equilibrium`);
             status 4 where the load cannot be carried.
         chunk: grid points per block (whole rows of the last motor; a zarr chunk).
-        threads: threads of each block's compliance (default one per core).
+        threads: threads of each block's compliance (default one per core; an integer >= 1,
+            capped to :data:`h4pin.limits.MAX_THREADS` with a warning).
         progress: a tqdm progress bar.
         out: also write it there: ``.nc`` (computed in memory, saved atomically) or ``.zarr``
             (streamed, resumed after a kill: :func:`stream`; returned opened lazily).
@@ -456,7 +467,8 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
         TooLargeError: over the memory or time limit (before any work).
         UnassembledError: the reference configuration does not close.
     """
-    if out is not None and Path(out).suffix == ".zarr":
+    threads = check_threads(threads)  # before any work: inside, a refusal would be one grid point's
+    if out is not None and input_path(out, "out").suffix == ".zarr":
         return stream(mech, output, axes, springs, locked, out=out, frequency=frequency, chunk=chunk,
                       threads=threads, progress=progress, gravity=gravity, payload=payload)
     if out is not None:
@@ -498,6 +510,7 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
     """
     import dask.array as da
 
+    threads = check_threads(threads)
     path = store.check_stream(out, "out")
     setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
                                                             True, (gravity, payload))

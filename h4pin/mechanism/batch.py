@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from h4pin import _jit, limits
 from h4pin.errors import H4Error, ParameterError, located
+from h4pin.inputs import real_array
 from h4pin.mechanism import compiled, engine
 from h4pin.mechanism.payload import Payload
 
@@ -43,26 +44,24 @@ CONFIGURATIONS_PER_S = 1e4
 
 
 def check_threads(threads: Any) -> int:
-    if threads is None:
-        return os.cpu_count() or 1
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise ParameterError(f"threads: an integer >= 1 (default: one per core), got {threads!r}")
-    return int(threads)
+    """``threads`` of a batch: one per core for None, an integer >= 1, capped to
+    :data:`h4pin.limits.MAX_THREADS` with a :class:`~h4pin.limits.CappedWarning`."""
+    return limits.check_threads(threads, os.cpu_count() or 1)
 
 
 def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool]:
     """``(Q (N, nq), one)``: a configuration (nq,) or a batch (N, nq) of ``mech`` (or of the
-    rigid mechanism a beam model lifts), checked at once; ``one`` when a single one was given."""
+    rigid mechanism a beam model lifts), checked at once; ``one`` when a single one was given. A
+    batch's size is estimated from its length before anything is copied (a broadcast array of
+    10**10 rows is refused, not allocated)."""
     if np.ndim(q) != 2:
         return mech.configuration(q, what)[None], True
-    try:
-        arr = np.array(q, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what}: configurations, numbers of shape (N, {mech.model.nq})") from None
-    n, nq = len(arr), mech.model.nq
+    n, nq = len(q), mech.model.nq
     if n == 0:
         raise ParameterError(f"{what}: an empty batch (give at least one configuration)")
-    limits.check_size(f"{mech.name}: {n:,} configurations", n * (BYTES_PER_CONFIGURATION + 8 * nq))
+    per = BYTES_PER_CONFIGURATION + 8 * nq + 8 * len(mech.couplings) * (mech.model.nv + 1)
+    limits.check_size(f"{mech.name}: {limits.fmt_count(n)} configurations", n * per)
+    arr = np.array(real_array(q, what, ParameterError, f"configurations, real numbers of shape (N, {nq})"))
     arr = mech.lift(arr)  # a configuration of the rigid mechanism: its beams at 0
     if arr.shape[1] != nq:
         raise ParameterError(f"{what}: configurations of shape (N, {nq}), got shape {arr.shape}")
@@ -71,8 +70,6 @@ def configurations(mech: Any, q: Any, what: str = "q") -> tuple[np.ndarray, bool
         i, c = bad[0]
         raise ParameterError(f"{what}[{i}][{c}] is {arr[i, c]}: a configuration must be finite")
     return arr, False
-
-
 
 
 def _tables(mech: Any, payload: tuple[int, pin.Inertia] | None = None) -> compiled.Tables | None:
@@ -109,12 +106,7 @@ def _run(mech: Any, tab: compiled.Tables, outs: compiled.Outputs, Q: np.ndarray,
         j = model.joints[model.getJointId(name)]
         working[j.idx_v:j.idx_v + j.nv] = False
     n, m = len(Q), len(outs.row_frame)
-    extra = np.zeros((n, len(mech.couplings), model.nv))
-    off = np.zeros(n, dtype=bool)  # a coupling that does not hold: the Pinocchio route says so
-    for i, q in enumerate(Q):
-        for r, c in enumerate(mech.couplings):
-            res, extra[i, r] = c.residual_row(model, q)
-            off[i] |= not abs(res) <= engine.CLOSURE_TOL
+    extra, off = coupling_batch(mech, Q)  # off: a coupling that does not hold: the Pinocchio route says so
     comp, freq = np.full((n, m, m), np.nan), np.full((n, n_freq), np.nan)
     status = np.full(n, compiled.FLAGGED, dtype=np.int8)
     args = (*tab, *outs, Q, k, working, extra, engine.CLOSURE_TOL)
@@ -163,6 +155,18 @@ def check_couplings(mech: Any, q: np.ndarray) -> None:
         r = c.residual_row(mech.model, q)[0]
         if not abs(r) <= engine.CLOSURE_TOL:
             raise engine.UnassembledError(f"coupling of {c.joint1!r} does not hold at q: error {abs(r):.3e}")
+
+
+def coupling_batch(mech: Any, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows (N, r, nv), off (N,))``: the couplings' rows at each configuration of Q (N, nq),
+    computed over the whole batch at once (:meth:`JointCoupling.residual_rows
+    <h4pin.mechanism.couplings.JointCoupling.residual_rows>`), and where one does not hold."""
+    extra = np.zeros((len(Q), len(mech.couplings), mech.model.nv))
+    off = np.zeros(len(Q), dtype=bool)
+    for r, c in enumerate(mech.couplings):
+        res, _ = c.residual_rows(mech.model, Q, extra[:, r])
+        off |= ~(np.abs(res) <= engine.CLOSURE_TOL)
+    return extra, off
 
 
 def coupling_rows(mech: Any, q: np.ndarray) -> np.ndarray | None:

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.errors import ParameterError
 from h4pin.mechanism.engine import Insertion, VirtualJoint
 
@@ -46,13 +47,19 @@ MAX_SEGMENTS = 200
 
 
 def _positive(name: str, value: Any, unit: str, rigid: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    """``value`` as a float: a real number > 0 within its plausible range
+    (:data:`h4pin.limits.BEAM_RANGES`), or ``inf`` where ``rigid``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ParameterError(f"Beam: {name} must be a number ({unit}), got {value!r}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an int beyond the floats: not "inf" (rigid), a value out of any range
+        raise ParameterError(f"Beam: {name} must be a finite number ({unit}), got an integer of {len(str(value))} "
+                             "digits") from None
     if not (0.0 < v < math.inf or (rigid and v == math.inf)):
         raise ParameterError(f"Beam: {name} must be {'> 0 (inf: rigid)' if rigid else 'finite and > 0'} ({unit}), "
                              f"got {value!r}")
-    return v
+    return limits.check_beam(name, v)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,7 +67,9 @@ class Beam:
     """A straight Euler-Bernoulli beam's section and material (SI): Young's modulus ``E`` (Pa),
     shear modulus ``G`` (Pa), area ``A`` (m²), second moments ``Iy``, ``Iz`` (m⁴, bending about
     the section's y and z axes), torsion constant ``J`` (m⁴) (``A``, ``Iy``, ``Iz``, ``J`` may be
-    ``inf``: rigid that way, no virtual joint); ``to``: the far end's name (a child
+    ``inf``: rigid that way, no virtual joint), each within its plausible range
+    (:data:`h4pin.limits.BEAM_RANGES`: an implausible value is refused here, not left to fail in
+    the compliance's linear algebra); ``to``: the far end's name (a child
     joint, a closure or a frame of the link) where the link has several; ``carry``: further
     attachments of the link (child joints, closures, frames) fixed to the far end rather than to
     the near one (a cross-bar at a forearm's tip, say); ``segments``: the span cut into that many
@@ -88,9 +97,13 @@ class Beam:
             object.__setattr__(self, name, _positive(name, getattr(self, name), unit, rigid=name not in "EG"))
         if self.to is not None and not isinstance(self.to, str):
             raise ParameterError(f"Beam: to must be a name, got {self.to!r}")
-        if isinstance(self.carry, str) or not all(isinstance(c, str) for c in self.carry):
-            raise ParameterError(f"Beam: carry must be a tuple of names, got {self.carry!r}")
-        object.__setattr__(self, "carry", tuple(self.carry))
+        try:
+            carry = None if isinstance(self.carry, (str, bytes)) else tuple(self.carry)
+        except TypeError:  # not a sequence
+            carry = None
+        if carry is None or not all(isinstance(c, str) for c in carry):
+            raise ParameterError(f"Beam: carry must be a tuple of names, got {self.carry!r:.100}")
+        object.__setattr__(self, "carry", carry)
 
     @classmethod
     def circle(cls, d: float, E: float, G: float, to: str | None = None) -> Beam:

@@ -33,6 +33,7 @@ import pinocchio as pin
 
 from h4pin._compat import constraint_calc
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
+from h4pin.files import input_path
 from h4pin.inputs import check_choice
 from h4pin.lookup import finite_configuration, model_configuration
 from h4pin.mechanism import assembly, batch, engine, loaded
@@ -159,10 +160,17 @@ class Mechanism(loaded.UnderLoad):
         freed). The reference configuration is Pinocchio's neutral one; a joint's range is the
         URDF's ``lower``..``upper`` where they differ (URDF's default 0..0 states none).
 
+        Both files are read as regular files of bounded size (a FIFO, a device or a folder is
+        refused before anything opens it); the URDF in the encoding its XML declaration states,
+        checked before Pinocchio builds it (:mod:`h4pin.mechanism.urdf_reader`); the sidecar's
+        numbers as users write them (``70e9``), a key given twice refused.
+
         Raises:
-            MissingExtraError: PyYAML is not installed. MalformedURDFError: the URDF does not
-            parse; the sidecar is not such a mapping, a key holds the wrong kind, or it names a
-            frame or motor the model lacks.
+            MissingExtraError: PyYAML is not installed. ParameterError: a path that is not a
+            ``str`` or ``os.PathLike``. InputFileError: a file missing, not a regular file, or too
+            large. MalformedURDFError: the URDF does not parse or holds a value Pinocchio would
+            choke on (named by element and attribute); the sidecar is not such a mapping, a key
+            is given twice or holds the wrong kind, or it names a frame or motor the model lacks.
         """
         return _from_urdf(cls, urdf_path, sidecar, actuated, free_flyer)
 
@@ -195,15 +203,22 @@ class Mechanism(loaded.UnderLoad):
         as :attr:`springs` (``springref``: :attr:`spring_rest`), and every body's mass, centre of
         mass and inertia. Pinocchio's configuration is MuJoCo's ``qpos`` (a ball's or free
         joint's quaternion reordered); world positions are MuJoCo's (``xpos``, ``site_xpos``).
+        The file, the files it includes and the assets it names (meshes, textures, height
+        fields, skins) are checked as regular files of bounded size before MuJoCo or Pinocchio
+        opens any (:func:`h4pin.mechanism.mjcf_reader.check_files`).
 
         Raises:
+            ParameterError: a path that is not a ``str`` or ``os.PathLike``.
+            InputFileError: the file, or one it names, is missing (the file itself), not a
+                regular file (a FIFO, a device, a folder) or too large.
             MissingExtraError: Pinocchio < 4 (its MJCF reader gives no closures), or MuJoCo is
                 not installed (the ``mujoco`` extra).
             MalformedURDFError: MuJoCo or Pinocchio cannot read the file (its message), the
                 readers disagree on the closures, or a file value h4pin would drop (a negative or
                 non-finite joint ``stiffness`` or ``springref``, a ``range`` not finite or
-                reversed, a first keyframe's ``qpos`` of another length than the model's): the
-                element and attribute named.
+                reversed, a first keyframe's ``qpos`` of another length than the model's, a
+                position, axis, anchor or mass that is not finite, a position beyond
+                ``h4pin.limits.RANGES["robot length"]``): the element and attribute named.
             UnsupportedFeatureError: tendon equalities, an actuator not on a joint (unless
                 ``actuated`` is given), a second body with joints on the world (Pinocchio's reader
                 reads one tree), a body the two readers place differently: refused by name, never
@@ -212,6 +227,7 @@ class Mechanism(loaded.UnderLoad):
         """
         from h4pin.mechanism import mjcf_reader
 
+        path = input_path(path, "path")
         model, cms, info = mjcf_reader.read(path)
         if info.refused and actuated is None:
             raise UnsupportedFeatureError(f"{path}: actuator(s) {', '.join(map(repr, info.refused[:4]))} drive no "
@@ -229,7 +245,7 @@ class Mechanism(loaded.UnderLoad):
         an Euler-Bernoulli cantilever from the link's joint to its far end) inserted, with their
         springs in :attr:`beam_springs`, added to every :meth:`compliance` and :meth:`modes`
         call. A configuration of this (rigid) mechanism is accepted as it is (the virtual joints
-        at 0); so are its closures, motors, ranges and couplings.
+        at 0); so are its closures, motors, ranges and couplings. ``{}``: this mechanism, unchanged.
 
         Raises:
             ParameterError: not a mapping of link names to beams, an unknown link, a link with no
@@ -415,11 +431,14 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     """:meth:`Mechanism.with_beams`."""
     from h4pin.mechanism import beams as bm
 
-    if not isinstance(beams, Mapping) or not beams:
+    if not isinstance(beams, Mapping):
         raise ParameterError(f"beams: a mapping {{link name: h4pin.mechanism.Beam}}, got {beams!r}")
-    d = mech.model.createData()
-    pin.framesForwardKinematics(mech.model, d, mech.reference)
-    ins = [bm.insertion(mech.model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
+    if not beams:  # no flexible link: the mechanism as it is
+        return mech
+    model = mech.model
+    d = model.createData()
+    pin.framesForwardKinematics(model, d, mech.reference)
+    ins = [bm.insertion(model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
     parents = [i.parent for i in ins]
     if len(set(parents)) != len(parents):
         raise ParameterError("beams: two links on one joint; one beam per joint")
@@ -432,8 +451,8 @@ def _from_urdf(cls: Any, urdf_path: Any, sidecar: Any, actuated: Any, free_flyer
 
     if not isinstance(free_flyer, bool):
         raise ParameterError(f"free_flyer: True or False, got {free_flyer!r}")
-    urdf_path = Path(urdf_path)
-    side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
+    urdf_path = input_path(urdf_path, "urdf_path")
+    side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else input_path(sidecar, "sidecar"))
     model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
     if side.gravity is not None:
         model.gravity = pin.Motion(np.array(side.gravity), np.zeros(3))

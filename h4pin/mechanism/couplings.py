@@ -43,5 +43,24 @@ class JointCoupling:
         row[model.joints[model.getJointId(self.joint2)].idx_v] = -slope
         return float(q[i1] - self.origin1 - value), row
 
+    def residual_rows(self, model: pin.Model, Q: np.ndarray, out: np.ndarray | None = None) -> tuple[np.ndarray,
+                                                                                                    np.ndarray]:
+        """:meth:`residual_row` at each configuration of Q (N, nq) at once, the polynomial and its
+        slope evaluated over the batch: residuals (N,) and rows (N, nv), written into ``out``
+        (N, nv), zero but on the two joints' columns, when given."""
+        rows = np.zeros((len(Q), model.nv)) if out is None else out
+        i1 = self._index(model, self.joint1)
+        rows[:, model.joints[model.getJointId(self.joint1)].idx_v] = 1.0
+        if self.joint2 is None:
+            return Q[:, i1] - self.origin1 - self.poly[0], rows
+        u2 = Q[:, self._index(model, self.joint2)] - self.origin2
+        value, slope = np.zeros(len(Q)), np.zeros(len(Q))
+        for k, c in enumerate(self.poly):
+            value = value + c * u2**k
+            if k:
+                slope = slope + k * c * u2 ** (k - 1)
+        rows[:, model.joints[model.getJointId(self.joint2)].idx_v] = -slope
+        return Q[:, i1] - self.origin1 - value, rows
+
 
 __all__ = ["JointCoupling"]

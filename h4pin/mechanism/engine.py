@@ -49,6 +49,7 @@ import pinocchio as pin
 
 from h4pin._compat import constraint_calc
 from h4pin.errors import ParameterError, SingularPoseError
+from h4pin.inputs import real_array
 from h4pin.lookup import frame_id
 from h4pin.verdicts import CLOSURE_SINGULAR_COND
 
@@ -207,15 +208,21 @@ def stiffness_vector(model: pin.Model, stiffness: Mapping[str, Any]) -> np.ndarr
     k = np.zeros(model.nv)
     for name, value in stiffness.items():
         jm = model.joints[_joint_id(model, name, "stiffness")]
-        if isinstance(value, (float, int)) and not isinstance(value, bool) and jm.nv == 1:  # the usual case
-            val = float(value)
+        if type(value) in (float, int) and jm.nv == 1:  # the usual case
+            try:
+                val = float(value)
+            except OverflowError:  # an int beyond the floats
+                val = math.inf
             if not (0 < val < math.inf):
                 raise ParameterError(f"stiffness of joint {name!r} must be finite and > 0, got {value!r}")
             k[jm.idx_v] = val
             continue
         try:
-            vals = np.broadcast_to(np.asarray(value, dtype=float), (jm.nv,))
-        except (TypeError, ValueError):
+            vals = np.broadcast_to(real_array(value, f"stiffness of joint {name!r}", ParameterError,
+                                              "a number" + (f" or {jm.nv} numbers" if jm.nv > 1 else "")), (jm.nv,))
+        except ParameterError:
+            raise
+        except ValueError:
             raise ParameterError(f"stiffness of joint {name!r} must be a number or {jm.nv} numbers, "
                                  f"got {value!r}") from None
         if not np.all(np.isfinite(vals) & (vals > 0)):
@@ -311,7 +318,10 @@ def compliance_matrix(model: pin.Model, constraint_models: Any, q: np.ndarray, *
                          constraint_datas=constraint_datas, closure_tol=closure_tol, singular_cond=singular_cond)
     elastic = np.flatnonzero(k)
     b = n[elastic]  # elastic deflections per basis motion
-    chol = np.linalg.cholesky(b.T @ (k[elastic, None] * b))
+    try:
+        chol = np.linalg.cholesky(b.T @ (k[elastic, None] * b))
+    except np.linalg.LinAlgError:  # springs over too many decades: the reduced stiffness loses rank in round-off
+        raise _not_definite(model, n, b, k[elastic]) from None
     x = np.linalg.solve(chol, (output_jacobian(model, d, outputs) @ n).T)
     return x.T @ x
 
@@ -446,16 +456,39 @@ class Modes:
 
 
 
-def _unrestrained(model: pin.Model, frozen: np.ndarray, cond: float) -> UnrestrainedMotionError:
-    """The error naming the frozen mechanism's least restrained motion."""
-    _, s, vt = np.linalg.svd(frozen)
-    mode = vt[-1] if len(s) >= model.nv else vt[len(s)]
+def _moving(model: pin.Model, mode: np.ndarray) -> tuple[str, ...]:
+    """The joints a motion ``mode`` (nv,) moves most, largest first."""
     names = []
     for j in range(1, model.njoints):
         amp = float(np.linalg.norm(mode[_velocity_slice(model, j)]))
         if amp > 0.1 * np.max(np.abs(mode)):
             names.append((amp, model.names[j]))
-    joints = tuple(n for _, n in sorted(names, reverse=True))
+    return tuple(n for _, n in sorted(names, reverse=True))
+
+
+def _not_definite(model: pin.Model, n: np.ndarray, b: np.ndarray, k: np.ndarray) -> UnrestrainedMotionError:
+    """The error of a reduced stiffness ``b^T diag(k) b`` that is not positive definite in
+    round-off (springs over too many decades), naming its softest motion when it can."""
+    mode, joints = np.full(model.nv, np.nan), ()
+    with np.errstate(all="ignore"):
+        try:
+            kz = b.T @ (k[:, None] * b)
+            mode = n @ np.linalg.eigh(0.5 * (kz + kz.T))[1][:, 0]
+            mode = mode / np.max(np.abs(mode))
+            joints = _moving(model, mode)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            pass
+    return UnrestrainedMotionError(
+        f"the reduced stiffness is not positive definite to round-off: its springs span "
+        f"{np.log10(k.max() / k.min()):.0f} decades ({k.min():.3g} to {k.max():.3g}){': it moves ' if joints else ''}"
+        f"{', '.join(joints[:6])}; bring the springs closer or lock the stiffest joints", mode, joints, math.inf)
+
+
+def _unrestrained(model: pin.Model, frozen: np.ndarray, cond: float) -> UnrestrainedMotionError:
+    """The error naming the frozen mechanism's least restrained motion."""
+    _, s, vt = np.linalg.svd(frozen)
+    mode = vt[-1] if len(s) >= model.nv else vt[len(s)]
+    joints = _moving(model, mode)
     what = "strains no spring" if not math.isfinite(cond) or cond > 1e15 else "nearly strains no spring"
     return UnrestrainedMotionError(
         f"an admissible motion {what} (frozen mechanism's scaled condition number {cond:.2e}): it moves "

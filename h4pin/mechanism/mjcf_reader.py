@@ -29,7 +29,11 @@ Joint couplings (``<equality><joint polycoef>``) become :class:`~h4pin.mechanism
 constraints. File values MuJoCo compiles but h4pin would drop are refused by element and attribute
 (:class:`~h4pin.errors.MalformedURDFError`): a negative or non-finite joint ``stiffness`` or
 ``springref``, a ``range`` not finite or with its bounds reversed, a first keyframe whose ``qpos``
-has not one value per coordinate (MuJoCo fills the rest). What neither reader can represent is
+has not one value per coordinate (MuJoCo fills the rest), and any position, orientation, axis,
+mass, inertia, anchor or keyframe that is not finite (MuJoCo reads ``nan``) or a position beyond
+``h4pin.limits.RANGES["robot length"]``. Before either reader opens anything, the file, the files
+it includes and the assets it names are checked as regular files of bounded size
+(:func:`check_files`: a FIFO named as a mesh would block MuJoCo forever). What neither reader can represent is
 refused by name (:class:`~h4pin.errors.UnsupportedFeatureError`): tendon equalities, actuators
 that do not drive a joint (unless the motors are given), a second body on the world with joints
 (Pinocchio's reader reads the first tree only).
@@ -38,6 +42,8 @@ that do not drive a joint (unless the motors are given), a second body on the wo
 from __future__ import annotations
 
 import dataclasses
+import os
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +51,8 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
+from h4pin.files import ASSET_BYTES, check_input, read_input
+from h4pin.limits import RANGES
 from h4pin.mechanism.couplings import JointCoupling
 
 
@@ -174,6 +182,111 @@ def _check_values(path: Path, mj: Any) -> None:
                                      f"model has {mj.nq} coordinates (MuJoCo would fill the rest)")
 
 
+def _dirs(trees: list[tuple[Path, ET.Element]], main: Path, key: str) -> list[Path]:
+    """Where MuJoCo may look for an asset of the compiler folder ``key`` (``meshdir``,
+    ``texturedir``): that folder (or ``assetdir``) of any ``<compiler>``, relative to the main
+    file's folder or to the folder of the file that states it, and those folders themselves."""
+    out = [main]
+    for where, root in trees:
+        out.append(where.parent)
+        for comp in root.iter("compiler"):
+            for attr in (key, "assetdir"):
+                if comp.get(attr):
+                    out += [main / comp.get(attr), where.parent / comp.get(attr)]
+    return list(dict.fromkeys(out))
+
+
+def _existing(name: str, dirs: list[Path]) -> list[Path]:
+    """The paths ``name`` may stand for (absolute, or under each of ``dirs``) that exist."""
+    paths = [Path(name)] if Path(name).is_absolute() else [d / name for d in dirs]
+    return [p for p in dict.fromkeys(paths) if os.path.lexists(p)]
+
+
+def check_files(path: Path) -> None:
+    """Refuse, before MuJoCo or Pinocchio opens anything, an MJCF file, a file it includes
+    (``<include file>``, read here as XML too) or an asset it names (every ``file*`` attribute:
+    meshes, textures, height fields, skins, models; found as MuJoCo finds them, from the
+    ``<compiler>``'s ``meshdir``, ``texturedir`` or ``assetdir``) that is not a regular file of a
+    bounded size (:func:`h4pin.files.check_input`: a FIFO would block the reader forever, a device
+    never end). A file named but missing is left to MuJoCo's own message.
+
+    Raises:
+        InputFileError: naming the file, the element that names it and what it is.
+        MalformedURDFError: the file or an included one is not well-formed XML.
+    """
+    main = path.parent
+    trees: list[tuple[Path, ET.Element]] = []
+    todo, seen = [path], set()
+    while todo:
+        where = todo.pop()
+        if os.path.abspath(where) in seen:
+            continue
+        seen.add(os.path.abspath(where))
+        data = read_input(where, "MJCF file" if where == path else f"{path}: <include file>")
+        try:
+            root = ET.fromstring(data)
+        except ET.ParseError as exc:
+            raise MalformedURDFError(f"{where}: not well-formed XML ({exc})") from None
+        trees.append((where, root))
+        for inc in root.iter("include"):
+            todo += _existing(inc.get("file") or "", [main, where.parent]) if inc.get("file") else []
+    for _, root in trees:
+        for elem in root.iter():
+            for attr, name in elem.attrib.items():
+                if not attr.startswith("file") or not name or elem.tag == "include":
+                    continue
+                dirs = _dirs(trees, main, "meshdir" if elem.tag in ("mesh", "skin") else "texturedir")
+                for candidate in _existing(name, dirs):
+                    check_input(candidate, f"{path}: <{elem.tag} {attr}>", max_bytes=ASSET_BYTES)
+
+
+def _finite(path: Path, what: str, attr: str, values: Any, length: bool = False) -> None:
+    """Refuse a compiled value that is not finite (or a position beyond the plausible length of
+    a robot: :data:`h4pin.limits.RANGES`), naming the element and attribute."""
+    v = np.asarray(values, dtype=float).reshape(-1)
+    lo, hi, unit, span = RANGES["robot length"]
+    if not np.all(np.isfinite(v)):
+        raise MalformedURDFError(f"{path}: {what}: {attr} {' '.join(f'{x:g}' for x in v)} is not finite")
+    if length and not np.all((v >= lo) & (v <= hi)):
+        raise MalformedURDFError(f"{path}: {what}: {attr} {' '.join(f'{x:g}' for x in v)} is outside the plausible "
+                                 f"range [{lo:g}, {hi:g}] {unit} of {span} (h4pin.limits.RANGES)")
+
+
+def _check_numbers(path: Path, mj: Any) -> None:
+    """Refuse positions, orientations, axes, masses, inertias, anchors and keyframes that MuJoCo
+    compiled from the file but that are not finite (``nan`` is read as a number), or positions
+    beyond the plausible length of a robot; each named by element and attribute."""
+    import mujoco
+
+    for b in range(1, mj.nbody):
+        what = f"body {_body_name(mj, b)!r}"
+        for attr, values, length in (("pos", mj.body_pos[b], True), ("quat", mj.body_quat[b], False),
+                                     ("inertial pos", mj.body_ipos[b], True),
+                                     ("inertial quat", mj.body_iquat[b], False), ("mass", mj.body_mass[b], False),
+                                     ("diaginertia", mj.body_inertia[b], False)):
+            _finite(path, what, attr, values, length)
+    for i in range(mj.njnt):
+        _finite(path, f"joint {_joint_name(mj, i)!r}", "pos", mj.jnt_pos[i], True)
+        _finite(path, f"joint {_joint_name(mj, i)!r}", "axis", mj.jnt_axis[i])
+        if int(mj.jnt_type[i]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            _finite(path, f"joint {_joint_name(mj, i)!r}", "ref", mj.qpos0[mj.jnt_qposadr[i]], True)
+    for i in range(mj.nsite):
+        what = f"site {mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_SITE, i) or i!r}"
+        _finite(path, what, "pos", mj.site_pos[i], True)
+        _finite(path, what, "quat", mj.site_quat[i])
+    kinds = {int(mujoco.mjtEq.mjEQ_CONNECT): ("connect", "anchor"), int(mujoco.mjtEq.mjEQ_WELD): ("weld", "relpose"),
+             int(mujoco.mjtEq.mjEQ_JOINT): ("joint", "polycoef")}
+    for i in range(mj.neq):
+        kind, attr = kinds.get(int(mj.eq_type[i]), ("other", "data"))
+        what = f"equality {mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_EQUALITY, i) or i!r} ({kind})"
+        if kind in ("connect", "weld"):
+            _finite(path, what, "anchor", mj.eq_data[i, :3], True)
+        _finite(path, what, attr, mj.eq_data[i])
+    for k in range(mj.nkey):  # positions (m), angles (rad) and quaternions: none beyond 1e3
+        _finite(path, f"keyframe {mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_KEY, k) or k!r}", "qpos", mj.key_qpos[k],
+                True)
+
+
 def _check_one_tree(path: Path, mj: Any) -> None:
     """Refuse a second body on the world whose tree has joints: Pinocchio's reader reads the first
     body under ``<worldbody>`` only (a second one without joints is part of the world)."""
@@ -289,10 +402,12 @@ def _load(path: Path) -> tuple[Any, pin.Model, list[Any], dict[int, int]]:
     require("mujoco", extra="mujoco", what="Mechanism.from_mjcf")
     import mujoco
 
+    check_files(path)
     try:
         mj = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:  # MuJoCo's reader raises ValueError with its own message
-        raise MalformedURDFError(f"{path}: MuJoCo cannot read it ({exc})") from None
+        raise MalformedURDFError(f"{path}: MuJoCo cannot read it ({' '.join(str(exc).split())})") from None
+    _check_numbers(path, mj)
     _check_values(path, mj)
     _check_one_tree(path, mj)
     try:
@@ -405,4 +520,4 @@ def read(path: str | Path) -> tuple[pin.Model, list[Any], MjcfInfo]:
                                      tuple(refused), tuple(couplings))
 
 
-__all__ = ["MjcfInfo", "from_qpos", "read"]
+__all__ = ["MjcfInfo", "check_files", "from_qpos", "read"]

@@ -56,9 +56,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from h4pin import limits
 from h4pin.errors import ParameterError, UnsupportedFeatureError
 from h4pin.files import check_output, check_replace, write_text
+from h4pin.inputs import check_real, real_array
 from h4pin.mechanism import engine
+from h4pin.mechanism.arguments import items
 
 #: The elastic exports: time step (s), and the closures' solref (time constant s, damping ratio)
 #: and solimp. A closure then acts as a spring of stiffness ~ m_eff d / ((1 - d) tau^2) (m_eff
@@ -233,10 +236,7 @@ def _configuration(mech: Any, q: Any) -> np.ndarray:
     model = mech.model
     if q is None:
         return np.asarray(mech.assemble(), float)
-    try:
-        q = np.array(q, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"q: a configuration ({model.nq},), got {q!r}") from None
+    q = np.array(real_array(q, "q", ParameterError, f"a configuration ({model.nq},) of real numbers"))
     if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
         raise ParameterError(f"q: a finite configuration of shape ({model.nq},), got shape {q.shape}")
     worst = max(((max(e), n) for n, e in mech.closure_errors(q).items()), default=(0.0, ""))
@@ -249,10 +249,8 @@ def _configuration(mech: Any, q: Any) -> np.ndarray:
 def _locked(mech: Any, locked: Iterable[Any], springs: Mapping[str, float]) -> set[int]:
     """Joint ids left out of the file: ``locked``, the motors and free-flyer roots without a spring."""
     model = mech.model
-    if isinstance(locked, (str, bytes)):
-        locked = [locked]
     out = set()
-    for name in locked:
+    for name in items(locked, (str, bytes), "locked: joint names"):
         if not isinstance(name, str) or not model.existJointName(name):
             raise ParameterError(f"locked: no joint {name!r} in the model")
         if name in springs:
@@ -413,6 +411,46 @@ def _payload(s: Any, mech: Any, bodies: dict[int, Any], payload: Any) -> None:
             b.explicitinertial = True
 
 
+#: The options of :func:`spec` (and of :func:`to_xml`, :func:`write`, ``Mechanism.to_mjcf``).
+OPTIONS = ("locked", "sites", "name", "damping", "solref", "solimp", "timestep", "payload")
+
+
+def check_options(options: Mapping[str, Any]) -> None:
+    """Refuse an option :func:`spec` does not take, naming it and the options."""
+    unknown = [k for k in options if k not in OPTIONS]
+    if unknown:
+        raise ParameterError(f"to_mjcf: no option {unknown[0]!r}; the options are {', '.join(OPTIONS)}")
+
+
+def _check_spec_options(sites: Any, name: Any, solref: Any, solimp: Any) -> tuple[list[str], Any, Any]:
+    """``(sites, solref, solimp)`` of :func:`spec` checked: frame names, a name that is a ``str``
+    or None, ``solref`` None or 2 finite numbers, ``solimp`` 5 finite numbers."""
+    sites = items(sites, (str,), "sites: frame names")
+    if not all(isinstance(f, str) for f in sites):
+        raise ParameterError(f"sites: frame names (str), got {sites!r:.200}")
+    if name is not None and not isinstance(name, str):
+        raise ParameterError(f"name: the model's name, a str or None, got {name!r:.100}")
+    for label, value, sizes in (("solref", solref, (2,)), ("solimp", solimp, (5,))):
+        if value is None and label == "solref":
+            continue
+        arr = real_array(value, label, ParameterError, f"{' or '.join(map(str, sizes))} real numbers")
+        if arr.shape not in [(n,) for n in sizes] or not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{label}: {' or '.join(map(str, sizes))} finite numbers (MuJoCo's {label}), "
+                                 f"got {value!r:.100}")
+    return sites, solref, solimp
+
+
+def check_settings(damping: Any, timestep: Any) -> tuple[float, float]:
+    """``(damping, timestep)`` (s) as floats: real numbers (not bools), the damping within
+    ``h4pin.limits.RANGES["damping"]`` (0 to 1 s) and the time step within ``["timestep"]``
+    (1e-9 to 0.1 s); else a :class:`ParameterError` naming the option and its range."""
+    out = []
+    for label, value in (("damping", damping), ("timestep", timestep)):
+        check_real(value, label, unit="s")
+        out.append(float(limits.check_range(label, float(value), label)))
+    return out[0], out[1]
+
+
 def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterable[Any] = (),
          sites: Iterable[str] = (), name: str | None = None, damping: float = DAMPING,
          solref: Any = None, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP,
@@ -430,10 +468,10 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
             and free-flyer roots without a spring are locked too.
         sites: frame names given a site each (outputs to measure or load).
         name: the model's name (default the mechanism's).
-        damping: stiffness-proportional damping coefficient (s), >= 0.
+        damping: stiffness-proportional damping coefficient (s), 0 to 1 (:func:`check_settings`).
         solref, solimp: the closures' (and couplings') constraint parameters (default
             ``(2 timestep, 1)``, the stiffest MuJoCo keeps, and :data:`ELASTIC_SOLIMP`).
-        timestep: MuJoCo time step (s), > 0. A closure is a spring of stiffness about
+        timestep: MuJoCo time step (s), 1e-9 to 0.1 (:func:`check_settings`). A closure is a spring of stiffness about
             ``2.5e3 m / timestep^2`` (N/m; m the mass it moves, ``docs/mechanisms.md``): a light
             mechanism (links of grams) needs a smaller step than the default for its closures to
             stay far stiffer than its springs.
@@ -452,13 +490,11 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
     mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
     model = mech.model
     stiff = _spring_values(model, springs, mech.beam_springs)
+    sites, solref, solimp = _check_spec_options(sites, name, solref, solimp)
     held = _locked(mech, locked, stiff)
-    for frame in [sites] if isinstance(sites, str) else sites:
-        engine.frame_id(model, frame)
-    for label, value, ok in (("damping", damping, damping >= 0), ("timestep", timestep, timestep > 0)):
-        if not (isinstance(value, (int, float)) and np.isfinite(value) and ok):
-            raise ParameterError(f"{label}: a finite number {'>= 0' if label == 'damping' else '> 0'} (s), "
-                                 f"got {value!r}")
+    for frame in sites:
+        engine.frame_id(model, frame, what="sites")
+    damping, timestep = check_settings(damping, timestep)
     q = _configuration(mech, q)
     solref = (2.0 * float(timestep), 1.0) if solref is None else solref
     s = mujoco.MjSpec()
@@ -470,7 +506,7 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
     bodies, values = _bodies(mujoco, s, mech, q, stiff, held, float(damping), float(timestep))
     _closures(mujoco, s, mech, bodies, solref, solimp)
     _couplings(mujoco, s, mech, held, solref, solimp)
-    for frame in [sites] if isinstance(sites, str) else sites:
+    for frame in sites:
         f = model.frames[engine.frame_id(model, frame)]
         site = bodies[int(f.parentJoint)].add_site()
         site.name, site.pos, site.quat = frame, floats(f.placement.translation), quaternion(f.placement.rotation)
@@ -489,6 +525,7 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
 def to_xml(mech: Any, springs: Mapping[Any, Any], q: Any = None, **options: Any) -> str:
     """MJCF text of :func:`spec` (same arguments), compiled and written by MuJoCo to 17
     significant digits, after two comment lines: the licence, and what wrote it."""
+    check_options(options)
     mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
     s = spec(mech, springs, q, **options)
     s.compile()
@@ -513,6 +550,7 @@ def write(mech: Any, path: str | os.PathLike[str], springs: Mapping[Any, Any], q
         ParameterError: ``path`` cannot be written (no folder, a folder, not ``.xml``), or is a
             file h4pin did not write and ``overwrite`` is False; as :func:`spec`.
     """
+    check_options(options)
     path = check_output(path, "path", suffixes=(".xml",))
     check_replace(path, "path", overwrite)
     options.setdefault("name", path.stem)
@@ -520,6 +558,6 @@ def write(mech: Any, path: str | os.PathLike[str], springs: Mapping[Any, Any], q
 
 
 __all__ = ["ARMATURE_STEPS", "CHAIN_MASS", "CLOSED_TOL", "DAMPING", "ELASTIC_SOLIMP", "ELASTIC_SOLREF",
-           "ELASTIC_TIMESTEP", "KEYFRAME", "MIN_MUJOCO_ELASTIC", "angle", "floats", "full_precision", "is_free",
-           "is_prismatic", "is_revolute", "motion", "quaternion", "require_mujoco", "set_spring", "spec", "to_xml",
-           "version", "write"]
+           "ELASTIC_TIMESTEP", "KEYFRAME", "MIN_MUJOCO_ELASTIC", "OPTIONS", "angle", "check_options", "check_settings",
+           "floats", "full_precision", "is_free", "is_prismatic", "is_revolute", "motion", "quaternion",
+           "require_mujoco", "set_spring", "spec", "to_xml", "version", "write"]

@@ -33,6 +33,8 @@ for the package: :class:`h4pin.mechanism.Mechanism` and :mod:`h4pin.io.interop` 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import re
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -41,6 +43,8 @@ from typing import Any
 import pinocchio as pin
 
 from h4pin.errors import MalformedURDFError, MechanismWarning
+from h4pin.files import read_input
+from h4pin.mechanism import urdf_reader
 
 #: The joint conversions the toolbox's loader accepts (``joint_type``).
 JOINT_TYPES = ("SPHERICAL", "FIXED") + tuple(f"UJOINT_{a}{b}" for a in "XYZ" for b in "XYZ" if a != b)
@@ -207,25 +211,67 @@ def _beams(path: str, value: Any) -> dict[str, Any]:
     return out
 
 
+#: A number as users write it, YAML 1.2's float: ``70e9``, ``1e-9``, ``1.5e9``, ``.5`` (YAML 1.1, which
+#: PyYAML follows, needs a dot and a signed exponent: it reads ``70e9`` and ``1e-9`` as text).
+_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)?$")
+
+
+@functools.lru_cache(maxsize=1)
+def _loader() -> Any:
+    """PyYAML's safe loader reading numbers as users write them (:data:`_FLOAT`, after YAML 1.1's
+    own int and float) and refusing a mapping that gives a key twice (YAML keeps the last one
+    without a word)."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+            if isinstance(node, yaml.MappingNode):
+                seen: set[Any] = set()
+                for key_node, _ in node.value:
+                    if key_node.tag == "tag:yaml.org,2002:merge":
+                        continue
+                    key = self.construct_object(key_node, deep=True)
+                    try:
+                        twice = key in seen
+                        seen.add(key)
+                    except TypeError:  # an unhashable key: the base class says so
+                        continue
+                    if twice:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"the key {key!r} is given twice (YAML would keep the last one)",
+                            key_node.start_mark)
+            return super().construct_mapping(node, deep)
+
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
+    return Loader
+
+
 def read(path: str | Path) -> Sidecar:
-    """:func:`parse` of a YAML file.
+    """:func:`parse` of a YAML file (a regular file of bounded size: :func:`h4pin.files.read_input`),
+    its numbers read as users write them (``70e9``, ``1e-9``: YAML 1.2's floats) and a key given
+    twice in a mapping refused.
 
     Raises:
         MissingExtraError: PyYAML is not installed (the ``interop`` extra).
-        MalformedURDFError: the file cannot be read, is not YAML text, or as :func:`parse`.
+        InputFileError: missing, not a regular file (a FIFO, a device, a folder), too large.
+        MalformedURDFError: not YAML text (UTF-8), a key given twice, or as :func:`parse`.
     """
     from h4pin.extras import require
 
     require("yaml", extra="interop", what="reading a closed-loop sidecar")
     import yaml
 
+    data = read_input(path, "sidecar")
     path = Path(path)
     try:
-        content = yaml.safe_load(path.read_bytes().decode("utf-8"))
+        content = yaml.load(data.decode("utf-8"), Loader=_loader())  # a SafeLoader
     except UnicodeDecodeError:
         raise MalformedURDFError(f"{path}: not a text (UTF-8) file") from None
-    except (OSError, yaml.YAMLError) as exc:
-        raise MalformedURDFError(f"{path}: cannot read the sidecar ({exc})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or exc
+        raise MalformedURDFError(f"{path}{f', line {mark.line + 1}' if mark is not None else ''}: cannot read the "
+                                 f"sidecar ({' '.join(str(problem).split())})") from None
     return parse(content, str(path))
 
 
@@ -290,17 +336,12 @@ def build(urdf_path: str | Path, sidecar: Sidecar, *, free_flyer: bool = False) 
     them; ``free_flyer``: the root on a free-flyer joint (legged robots).
 
     Raises:
-        MalformedURDFError: Pinocchio cannot read the URDF; the sidecar names a frame or joint
-            the model lacks.
+        InputFileError: the URDF is not a regular file of bounded size.
+        MalformedURDFError: the URDF's checks (:mod:`h4pin.mechanism.urdf_reader`), or Pinocchio
+            cannot read it; the sidecar names a frame or joint the model lacks.
     """
+    model = urdf_reader.read(urdf_path, free_flyer=free_flyer)
     urdf_path = Path(urdf_path)
-    try:
-        if free_flyer:
-            model = pin.buildModelFromUrdf(str(urdf_path), pin.JointModelFreeFlyer())
-        else:
-            model = pin.buildModelFromUrdf(str(urdf_path))
-    except (RuntimeError, ValueError, OSError, IndexError) as exc:
-        raise MalformedURDFError(f"{urdf_path}: Pinocchio cannot read it ({exc})") from None
     model = convert(model, sidecar.joints, sidecar.path)
     cms = []
     for pair, kind in zip(sidecar.closed_loop, sidecar.types, strict=True):

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from h4pin import files
-from h4pin.errors import ParameterError
+from h4pin.errors import InputFileError, ParameterError
 from h4pin.extras import require
 from h4pin.files import check_output, clean_stale, make_readable, tmp_prefix
 
@@ -197,18 +197,38 @@ def _save(ds: Any, path: Path) -> Path:
     return path
 
 
-def open_store(path: str | Path) -> Any:
-    """Read a Dataset written by :func:`save` (or a finished streamed run) into memory."""
+def open_store(path: str | Path, what: str = "atlas") -> Any:
+    """Read a Dataset written by :func:`save` (or a finished streamed run) into memory: a
+    ``.zarr`` folder tagged as an h4pin atlas (:func:`h4pin.files.store_format`), or a NetCDF
+    file whose attributes say ``h4pin: atlas``. ``what`` names the argument in messages.
+
+    Raises:
+        InputFileError: naming ``what`` and the path: missing, not a regular file (a FIFO, a
+            device) or a folder, a folder that is no zarr store or a store h4pin did not write
+            (or of another format or version), a file that is not NetCDF or not an h4pin atlas.
+    """
     import xarray as xr
 
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"no atlas at {path}")
-    if path.suffix == ".zarr":
-        with opened(path) as ds:
+    zarr_store = Path(files.input_path(path, what)).suffix == ".zarr"
+    path = files.check_input(path, what, max_bytes=2**62, folder=zarr_store)
+    if zarr_store:
+        if files.store_format(path) != FORMAT:
+            attrs = files.store_attributes(path)
+            why = ("is not a zarr store" if attrs is None else files.not_ours(attrs, FORMAT)
+                   .replace("exists and h4pin did not write it", "is a zarr store h4pin did not write (no "
+                            f"{files.STORE_ATTR} attribute)"))
+            raise InputFileError(f"{what} {path} {why}: give an atlas h4pin wrote")
+    try:
+        with (opened(path) if zarr_store else xr.open_dataset(path, engine="h5netcdf")) as ds:
+            if not zarr_store and ds.attrs.get("h4pin") != FORMAT:
+                raise InputFileError(f"{what} {path} is a NetCDF file h4pin did not write as an atlas (its attributes "
+                                     "hold no h4pin: atlas): give an atlas h4pin wrote")
             return ds.load()
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        return ds.load()
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        if isinstance(exc, InputFileError):
+            raise
+        raise InputFileError(f"{what} {path}: h4pin cannot read it as an atlas ({type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())[:300]})") from None
 
 
 __all__ = ["DONE", "FORMAT", "PARTIAL_TAG", "block_layout", "check_out", "check_stream", "finish", "open_partial",
