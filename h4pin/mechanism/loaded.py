@@ -46,6 +46,7 @@ import pinocchio as pin
 
 from h4pin import limits
 from h4pin.errors import ConvergenceError, ParameterError
+from h4pin.limits import ImplausibleValueError
 from h4pin.mechanism import assembly, engine
 from h4pin.mechanism.arguments import checked_springs, outputs_of
 from h4pin.mechanism.batch import configurations
@@ -624,9 +625,12 @@ def compensate(mech: Any, targets: Any, springs: Mapping[Any, Any], loads: Any, 
     held = tuple(mech.beam_springs)
 
     def solve_for(loaded: bool, m: np.ndarray, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
-        eq = None
+        eq, err = None, np.array([np.inf])
         for _ in range(iterations):
-            rest = mech.assemble(rest, motors=m)
+            try:
+                rest = mech.assemble(rest, motors=m)
+            except ImplausibleValueError:  # the motors sent beyond ten turns: the targets are out of reach
+                break
             if loaded:
                 eq, _ = solve(problem(mech, rest, springs, loads, gravity, payload, locked))
                 err = _outputs_at(mech, eq.q, frames) - want
