@@ -188,7 +188,7 @@ def test_a_read_only_install_imports_and_computes(tmp_path):
     and computes: numba's cache goes to a per-user temporary folder (read-only bind mounts in a
     private mount namespace; skipped where the machine does not allow one)."""
     if shutil.which("unshare") is None:
-        pytest.skip("no unshare command")
+        pytest.skip("needs the unshare command (util-linux)")
     copy, home = tmp_path / "site", tmp_path / "home"
     home.mkdir()
     shutil.copytree(ROOT / "h4pin", copy / "h4pin", ignore=shutil.ignore_patterns("__pycache__"))
