@@ -259,7 +259,7 @@ def sweep_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
 
 def cycle(result: Any, path: str | Path, others: Sequence[Any] = ()) -> Path:
     """Trajectory, load, deflection and actuator torques along the cycle, written atomically as
-    PNG. ``others``: more results (another payload) whose |dD| is drawn beside."""
+    PNG. ``others``: more results (another payload) whose ‖dD‖ is drawn beside."""
     import matplotlib
 
     matplotlib.use("Agg")

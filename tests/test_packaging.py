@@ -25,7 +25,8 @@ from h4pin.kinematics.closed_form import centre_pose
 ROOT = Path(__file__).resolve().parent.parent
 #: sha256 of the Apache License 2.0 as published at https://www.apache.org/licenses/LICENSE-2.0.txt
 APACHE_2_SHA256 = "cfc7749b96f63bd31c3c42b5c471bf756814053e847c10f3eb003417bc523d30"
-SKIP_DIRS = {".git", ".venv", "venv", "build", "dist", "__pycache__", ".pytest_cache", ".ruff_cache"}
+SKIP_DIRS = {".git", ".venv", "venv", "build", "dist", "__pycache__", ".pytest_cache", ".ruff_cache",
+             "_build", "auto_examples"}  # the last two: the documentation site's build (git-ignored)
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".urdf", ".txt", ".cfg", ".yaml", ".yml", ""}
 
 
