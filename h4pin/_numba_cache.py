@@ -13,7 +13,7 @@ numba's own locators put the cache beside the code (thrown away with it by a rei
 it by the file's absolute path. The folder may be deleted at any time: h4pin compiles again.
 
 When: numba stamps a cached function with its own source file alone (its modification time and
-size before numba 0.6x, its content since), but h4pin's compiled pipeline freezes constants of
+size up to numba 0.67, its content since 0.68), but h4pin's compiled pipeline freezes constants of
 other modules (the packed layouts of ``stiffness/packed.py``, the element codes of
 ``description/elements.py``, ``SINGULAR_COND`` of ``verdicts.py``): a checkout that changed one
 of them but not ``pipeline.py`` would run the old code from the cache, silently. :class:`_Locator`
