@@ -40,6 +40,8 @@ from h4pin.errors import (  # noqa: E402
 from h4pin.io import erd as _erd  # noqa: E402
 from h4pin.kinematics.pinocchio import Kinematics  # noqa: E402
 from h4pin.mechanism import Mechanism, Modes, Payload  # noqa: E402
+from h4pin.mechanism.calibration import Calibration, calibrate  # noqa: E402
+from h4pin.mechanism.measurements import Measurements  # noqa: E402
 from h4pin.robot import H4, load  # noqa: E402
 from h4pin.stiffness.api import Compliance, compliance  # noqa: E402
 from h4pin.vibration import modes  # noqa: E402
@@ -52,6 +54,7 @@ if _erd.available():
 __all__ = [
     "H4",
     "VARIANTS",
+    "Calibration",
     "Compliance",
     "ConvergenceError",
     "ElasticH4",
@@ -65,6 +68,7 @@ __all__ = [
     "Mechanism",
     "LoadError",
     "MalformedURDFError",
+    "Measurements",
     "Modes",
     "ParameterError",
     "Payload",
@@ -72,6 +76,7 @@ __all__ = [
     "SingularPoseError",
     "URDFNotFoundError",
     "UnreachablePoseError",
+    "calibrate",
     "compliance",
     "elastic_model",
     "load",

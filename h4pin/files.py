@@ -399,11 +399,16 @@ _DOCTYPE = re.compile(r"\s*<!doctype html[^>]*>", re.IGNORECASE)
 _XML_DECL = re.compile(r"\s*<\?xml[^>]*\?>")
 
 
-def write_text(path: str | Path, text: str, *, mark: bool = True) -> Path:
+def write_text(path: str | Path, text: str, *, mark: bool = True, comment: str | None = None) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically, mode 0644, with (``mark``) a comment holding
     the SHA-256 of the rest (:func:`written_by_h4pin`): after an XML declaration or an HTML
-    doctype, else first. ``mark=False``: as given (the files the project ships)."""
-    if mark:
+    doctype, else first; ``comment``: a line comment's prefix (``"#"`` for YAML) to hold it on a
+    first line of its own. ``mark=False``: as given (the files the project ships)."""
+    if mark and comment is not None:
+        text = f"{comment} \n{text}"
+        digest = _sha256(text.encode("utf-8"))
+        text = f"{comment} <!-- written by h4pin, unchanged if sha256 {digest} -->\n{text[len(comment) + 2:]}"
+    elif mark:
         m = _DOCTYPE.match(text) or _XML_DECL.match(text)
         at = m.end() if m else 0
         digest = _sha256(text.encode("utf-8"))

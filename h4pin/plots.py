@@ -355,4 +355,52 @@ def tolerance(res: Any, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=90)
 
 
-__all__ = ["DISPLAY", "atlas_maps", "cycle", "frequency_map", "frequency_pareto", "sweep_pareto", "tolerance"]
+def sag_map(ds: Any, path: str | Path) -> Path:
+    """The map of :func:`h4pin.studies.loaded.sag_map`: colour = |sag of D| (um), arrows = its
+    horizontal part, the boundary of the computed poses in black."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(5.6, 4.6), layout="constrained")
+    ax = fig.subplots()
+    x, y = ds.x.values * 1e3, ds.y.values * 1e3
+    mesh = ax.pcolormesh(x, y, ds.sag_norm.values * 1e6, shading="nearest", cmap="viridis")
+    xx, yy = np.meshgrid(x, y)
+    ax.quiver(xx, yy, ds.sag.values[..., 0], ds.sag.values[..., 1], color="w", width=0.004)
+    ok = (ds.status.values == 0).astype(float)
+    if 0 < ok.sum() < ok.size and len(x) > 1 and len(y) > 1:
+        ax.contour(x, y, ok, levels=[0.5], colors="k", linewidths=1.2)
+    fig.colorbar(mesh, ax=ax).set_label("|sag of D| [um]")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_aspect("equal")
+    payload = ds.attrs.get("payload_kg", 0.0)
+    ax.set_title(f"H4 sag under its weight{f' and {payload:g} kg at D' if payload else ''}, "
+                 f"z = {ds.attrs['z'] * 1e3:.0f} mm", fontsize=9)
+    return save_figure(fig, path, dpi=110)
+
+
+def compensated_cycle(res: Any, path: str | Path) -> Path:
+    """:func:`h4pin.studies.loaded.compensated_cycle`: D's sag at the rigid inverse and after the
+    compensation (um), and the actuators' corrections (urad), along the cycle."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
+    a, b = fig.subplots(1, 2)
+    t = res.t * 1e3
+    for k, name in enumerate("xyz"):
+        a.plot(t, res.sag[:, k] * 1e6, label=f"d{name}, rigid inverse")
+    a.plot(t, np.linalg.norm(res.error, axis=1) * 1e6, "k--", label="|error|, compensated")
+    a.set_xlabel("t [ms]")
+    a.set_ylabel("D from its target [um]")
+    a.legend(fontsize=7)
+    for k in range(res.motors.shape[1]):
+        b.plot(t, (res.motors[:, k] - res.rigid[:, k]) * 1e6, label=f"actuator {k + 1}")
+    b.set_xlabel("t [ms]")
+    b.set_ylabel("compensated - rigid angle [urad]")
+    b.legend(fontsize=7)
+    fig.suptitle(f"pick-and-place cycle under the H4's weight and {res.payload:g} kg at D, quasi-static", fontsize=9)
+    return save_figure(fig, path, dpi=110)
+
+
+__all__ = ["DISPLAY", "atlas_maps", "compensated_cycle", "cycle", "frequency_map", "frequency_pareto", "sag_map",
+           "sweep_pareto", "tolerance"]

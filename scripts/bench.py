@@ -267,6 +267,7 @@ def main() -> None:
     args = _parser().parse_args()
     if args.mechanisms:
         mechanism_rows(args.repeat)
+        loaded_rows()
         return
     if args.cold and not args.all:
         cold_table()
@@ -619,6 +620,51 @@ def mechanism_rows(repeat: int) -> None:
         print(f"{name:<20}{r['nv']:>4}{r['plain']:>11.1f}{r['pinocchio']:>11.1f}{r['one']:>10.1f}{r['two']:>10.1f}"
               f"{r['plain'] / r['one']:>10.1f}{r['plain'] / r['two']:>10.1f}{r['freq']:>9.1f}"
               f"{r['freq'] / r['one']:>6.1f}{r['beams_nv']:>10}{r['beams']:>10.1f}")
+
+
+def loaded_rows() -> None:
+    """The loaded robot (h4pin.mechanism.loaded) beside the linear compliance: one equilibrium under
+    gravity with its tangent compliance, on corpus robots and the elastic H4, against a linear
+    compliance of the same robot (the compiled batch per configuration, one thread); and the H4's
+    loaded compliance over poses (h4pin.studies.loaded.sag) against its linear atlas per pose."""
+    import warnings
+
+    from h4pin.errors import MechanismWarning
+    from h4pin.mechanism import Mechanism
+    from h4pin.studies import loaded
+
+    robots = Path(__file__).resolve().parent.parent / "tests" / "robots"
+    print("\nloaded equilibrium under gravity + tangent compliance, per configuration (one thread)")
+    print(f"{'robot':<20}{'nv':>4}{'loaded ms':>11}{'linear us':>11}{'ratio':>9}{'target':>8}")
+    cases = []
+    for name in ("5bar_linkage_iso3d", "robot_delta", "cassie_like"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MechanismWarning)
+            mech = Mechanism.from_urdf(robots / name / "robot.urdf")
+            q = mech.assemble()
+        springs = {n: 2e3 if n in mech.actuated else 50.0 for n in list(mech.model.names)[1:]}
+        frame = next(f.name for f in mech.model.frames if f.parentJoint == mech.constraint_models[0].joint1_id)
+        cases.append((name, mech, q, springs, frame, ()))
+    h4 = h4pin.load("prototype")
+    em = h4pin.elastic_model(h4)
+    cases.append(("elastic H4", em.mechanism, em.configuration(centre_pose(h4)), {}, "D", em.locked))
+    for name, mech, q, springs, frame, locked in cases:
+        Q = np.tile(q, (256, 1))
+        mech.compliance(Q[:2], springs, [frame], locked, method="compiled")
+
+        def one_loaded(mech=mech, q=q, springs=springs, frame=frame) -> None:
+            mech.equilibrium(q, springs, gravity=True).compliance([frame])
+
+        load_s = best_of(3, one_loaded)
+        lin_s = best_of(3, lambda mech=mech, Q=Q, springs=springs, frame=frame, locked=locked: mech.compliance(
+            Q, springs, [frame], locked, method="compiled", threads=1)) / len(Q)
+        print(f"{name:<20}{mech.model.nv:>4}{load_s * 1e3:>11.2f}{lin_s * 1e6:>11.1f}{load_s / lin_s:>9.0f}x{'10x':>8}")
+    poses = centre_pose(h4) + np.array([[dx, dy, 0.0, 0.0] for dx in (-0.05, 0.05) for dy in (-0.05, 0.05)])
+    sag_s = best_of(1, lambda: loaded.sag(h4, poses, 0.5)) / len(poses)
+    grid = centre_pose(h4) + np.zeros((10_000, 4))
+    lin_s = best_of(3, lambda: h4pin.compliance(h4, grid, "consistent")) / len(grid)
+    print(f"H4 loaded compliance over poses (sag, 0.5 kg): {sag_s * 1e3:.0f} ms a pose; its linear atlas "
+          f"{lin_s * 1e6:.2f} us a pose: {sag_s / lin_s:,.0f}x (target 10x: missed)")
 
 
 def _mechanism_row(urdf: Path, repeat: int, n: int = 512) -> dict[str, float]:

@@ -20,6 +20,7 @@ from h4pin.cli.common import (
     VARIANT,
     Model,
     Variant,
+    check_payload,
     fail,
     given,
     load_mechanism,
@@ -69,6 +70,9 @@ def atlas(
     lock: list[str] | None = typer.Option(None, metavar="JOINT", help="with --robot: a joint held rigid; repeat"),
     threads: int | None = typer.Option(None, help="with --robot: threads of each block's compliance (default: one "
                                        "per core)"),
+    gravity: bool = typer.Option(False, "--gravity", help="with --robot: also the output's sag under the robot's "
+                                 "weight (loaded equilibrium, docs/loaded.md)"),
+    payload: float = typer.Option(0.0, metavar="KG", help="with --robot --gravity: a point payload at --output, kg"),
 ) -> None:
     """Workspace atlas: worst compliance, z stiffness, isotropy, cond(J), cond(M1), reachability
     (and the first natural frequency). With --robot FILE, any closed-loop robot's atlas over its
@@ -87,9 +91,10 @@ def atlas(
         if h4_only:
             fail(f"{h4_only[0]} is an option of the H4's atlas; with --robot the grid is --motor NAME=LO:HI:N")
         return _motor_atlas(robot, sidecar, output, motor or [], count, motor_stiffness, joint_stiffness, lock or [],
-                            threads, out, figures, frequency, quiet, overwrite)
-    extra = [f"--{n.replace('_', '-')}" for n in ("sidecar", "output", "motor", "count", "motor_stiffness",
-                                                   "joint_stiffness", "lock", "threads") if given(ctx, n)]
+                            threads, out, figures, frequency, quiet, overwrite, (gravity, payload))
+    robot_only = ("sidecar", "output", "motor", "count", "motor_stiffness", "joint_stiffness", "lock", "threads",
+                  "gravity", "payload")
+    extra = [f"--{n.replace('_', '-')}" for n in robot_only if given(ctx, n)]
     if extra:
         fail(f"{extra[0]} goes with --robot FILE (any closed-loop robot's atlas)")
     if z and z_range:
@@ -142,7 +147,8 @@ def parse_motors(values: list[str]) -> dict[str, tuple[float, float, int]]:
 
 def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: list[str], count: int | None,
                  motor_k: float, joint_k: float, lock: list[str], threads: int | None, out: Path,
-                 figures: Path | None, frequency: bool, quiet: bool, overwrite: bool) -> None:
+                 figures: Path | None, frequency: bool, quiet: bool, overwrite: bool,
+                 loaded: tuple[bool, float] = (False, 0.0)) -> None:
     """``h4pin atlas --robot FILE``: :func:`h4pin.mechanism.atlas.atlas`."""
     from h4pin import plots
     from h4pin.files import check_output, check_replace
@@ -161,12 +167,21 @@ def _motor_atlas(robot: Path, sidecar: Path | None, output: str | None, motor: l
     mech = load_mechanism(robot, sidecar)
     springs = motor_atlas.default_springs(mech, motor_k, joint_k, lock)
     axes = motor_atlas.motor_axes(mech, grid, count=count) if count is not None else grid
+    check_payload(loaded[1])
+    if loaded[1] > 0 and not loaded[0]:
+        fail("--payload goes with --gravity (its weight)")
     ds = motor_atlas.atlas(mech, output, axes, springs, lock, frequency=frequency, threads=threads,
-                           progress=not quiet, out=out)
+                           progress=not quiet, out=out, gravity=loaded[0], payload=loaded[1])
     ok = ds.status == motor_atlas.OK
     typer.echo(f"{mech.name}: {int(ok.sum())} of {ok.size} grid points assembled and restrained "
                f"({', '.join(f'{s} {int((ds.status == c).sum())}' for c, s in enumerate(motor_atlas.STATUS_NAMES))})")
     _atlas_ranges(ds, ok, frequency, f" at {output}", ".4g")
+    if loaded[0] and int(ok.sum()):
+        import numpy as np
+
+        sag = np.sqrt((ds.sag ** 2).sum("xyz"))
+        typer.echo(f"sag of {output} under the robot's weight{f' and {loaded[1]:g} kg' if loaded[1] else ''}: "
+                   f"{float(sag.min()) * 1e3:.4g} to {float(sag.max()) * 1e3:.4g} mm")
     wrote(out, *(plots.atlas_maps(ds, figures) if figures is not None else ()))
 
 

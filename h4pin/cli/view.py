@@ -55,11 +55,14 @@ def view(
     model: Model = typer.Option("paper", help=MODEL),
     host: str = typer.Option("127.0.0.1", help="interface the server listens on; 0.0.0.0 lets other machines in"),
     mode: int | None = typer.Option(None, help="also animate this natural mode of the elastic robot (1: the first)"),
-    payload: float = typer.Option(0.0, metavar="KG", help=f"with --mode: {PAYLOAD}"),
+    payload: float = typer.Option(0.0, metavar="KG", help=f"with --mode or --gravity: {PAYLOAD} (with --robot: at "
+                                  "--output)"),
+    gravity: bool = typer.Option(False, "--gravity", help="draw the loaded equilibrium under the robot's weight (and "
+                                 "--load, --payload) instead of the linear deflection (docs/loaded.md)"),
     quiet: bool = typer.Option(False, "--quiet", help=f"{QUIET} (of --field)"),
     overwrite: bool = typer.Option(False, "--overwrite", help=OVERWRITE),
     robot: Path | None = typer.Option(None, metavar="FILE", help=f"{ROBOT}, drawn as sticks at its reference assembly "
-                                      "instead of the H4 (--variant ... --payload do not apply)"),
+                                      "instead of the H4 (--variant ... --mode do not apply)"),
     sidecar: Path | None = typer.Option(None, metavar="YAML", help=SIDECAR),
     output: str | None = typer.Option(None, metavar="FRAME", help="with --robot: the frame of the ellipsoid and the "
                                       "load (default: the atlas's)"),
@@ -98,8 +101,8 @@ def view(
         fail(f"--mode must be >= 1 (1: the first natural mode), got {mode}")
     check_payload(payload)
     limits.check_range("--payload", payload, "payload")
-    if payload > 0 and mode is None:
-        fail("--payload goes with --mode (the payload of the animated mode)")
+    if payload > 0 and mode is None and not gravity:
+        fail("--payload goes with --mode (the payload of the animated mode) or --gravity (its weight)")
     from h4pin.files import check_output, check_replace
     from h4pin.io import viewer
     from h4pin.mechanism import meshcat_server
@@ -119,26 +122,27 @@ def view(
 
     mech_options = ("sidecar", "output", "atlas_path", "motor_stiffness", "joint_stiffness", "lock")
     if robot is not None:
-        h4_only = [n for n in ("variant", "urdf", "pose", "field", "rotational", "model", "mode", "payload")
+        h4_only = [n for n in ("variant", "urdf", "pose", "field", "rotational", "model", "mode")
                    if given(ctx, n)]
         if h4_only:
             fail(f"--{h4_only[0]} is an option of the H4's view, not of --robot")
         own = any(given(ctx, n) for n in ("motor_stiffness", "joint_stiffness", "lock"))
         scene = _mechanism_scene(robot, sidecar, output, atlas_path, (motor_stiffness, joint_stiffness) if own
-                                 else None, lock or [], load, scale, exaggeration, host)
+                                 else None, lock or [], load, scale, exaggeration, host, (gravity, payload))
     elif extra := [n.replace("_path", "").replace("_", "-") for n in mech_options if given(ctx, n)]:
         fail(f"--{extra[0]} goes with --robot FILE")
     else:
         h4 = load_robot(variant, urdf)
         # The field and the mode are drawn here rather than by viewer.show (same order), for --quiet.
         scene = viewer.show(h4, None if pose is None else list(pose), None if load is None else list(load),
-                            scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host)
+                            scale=scale, exaggeration=exaggeration, rotational=rotational, model=model, host=host,
+                            gravity=gravity, payload=Payload(payload) if gravity and payload > 0 else None)
     try:
         if robot is None and field:
             viewer.ellipsoid_field(scene, viewer.workspace_grid(h4), model, progress=not quiet)
         if robot is None and mode is not None:
             x = centre_pose(h4) if pose is None else np.array(pose, dtype=float)
-            viewer.animate_mode(scene, x, mode - 1, Payload(payload) if payload > 0 else None)
+            viewer.animate_mode(scene, x, mode - 1, Payload(payload) if payload > 0 and not gravity else None)
         for line in scene.legend:
             typer.echo(line)
         if out is not None:
@@ -162,7 +166,7 @@ def view(
 
 def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atlas_path: Path | None,
                      stiffness: tuple[float, float] | None, lock: list[str], load: Any, scale: float | None,
-                     exaggeration: float | None, host: str) -> Any:
+                     exaggeration: float | None, host: str, loaded: tuple[bool, float] = (False, 0.0)) -> Any:
     """``h4pin view --robot FILE``: :func:`h4pin.mechanism.scene.show`; ``stiffness``: the
     (motor, joint) stiffness given (default: the atlas's springs, else 100 and 100)."""
     from h4pin.mechanism import atlas as motor_atlas
@@ -176,7 +180,10 @@ def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atla
     if ds is None or stiffness is not None:
         k = stiffness or (motor_atlas.MOTOR_STIFFNESS, motor_atlas.JOINT_STIFFNESS)
         springs = motor_atlas.default_springs(mech, *k, locked=lock)
+    from h4pin.mechanism import Payload
+
+    gravity, kg = loaded
     return scene.show(mech, None, springs, output, lock, atlas=ds, load=load, scale=scale,
-                      exaggeration=exaggeration, host=host)
+                      exaggeration=exaggeration, host=host, gravity=gravity, payload=Payload(kg) if kg > 0 else None)
 
 

@@ -43,6 +43,7 @@ from h4pin.errors import ParameterError
 from h4pin.kinematics import closed_form as geometry
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.mechanism import meshcat_server
+from h4pin.mechanism.engine import output_jacobian
 from h4pin.mechanism.scene import ELLIPSOID_SIZE, GHOST_SIZE, Scene, ellipsoid_axes, hex_color, nice
 from h4pin.robot import H4
 from h4pin.stiffness.api import Compliance, as_load, compliance
@@ -109,6 +110,47 @@ def ghost(scene: Scene, pose: np.ndarray, load: Any, result: Compliance | None =
                 f"red ghost: deflection under F = ({', '.join(f'{f:g}' for f in force)}) N exaggerated "
                 f"x{exaggeration:g} (true |dD| = {np.linalg.norm(dtp[:3]) * 1e6:.1f} um)")
     scene.force(x[:3], force)
+    return exaggeration
+
+
+def loaded_ghost(scene: Scene, pose: np.ndarray, load: Any = None, payload: Any = None,
+                 exaggeration: float | None = None) -> float:
+    """Draw the ghost of the robot in its loaded equilibrium (:mod:`h4pin.studies.loaded`: the
+    elastic model under its weight, ``load`` (force F (3,) N at D) and ``payload`` (an
+    :class:`h4pin.Payload` at D), the non-linear equilibrium rather than the linear deflection),
+    exaggerated (default: D moves about 30 mm on screen), and an arrow for the force. The plate
+    moves by the equilibrium's D and rotation, each forearm by its elastic actuator joint. Returns
+    the exaggeration."""
+    from h4pin.elastic import elastic_model
+    from h4pin.kinematics import pinocchio as kin
+    from h4pin.kinematics.closed_form import PlateState
+
+    h4 = scene.subject
+    x = geometry.as_pose(pose)
+    if exaggeration is not None:
+        limits.check_range("exaggeration", exaggeration, "exaggeration")
+    em = elastic_model(h4)
+    force = np.zeros(3) if load is None else as_load(load)[:3]
+    eq = em.mechanism.equilibrium(em.configuration(x), {}, {"D": force} if load is not None else None, gravity=True,
+                                  payload=None if payload is None else ("D", payload))
+    dy = eq.displacement("D")
+    dv = pin.difference(em.model, eq.rest, eq.q)
+    act = np.array([dv[em.model.joints[em.model.getJointId(f"actuator_{i + 1}_elastic")].idx_v] for i in range(4)])
+    d = em.model.createData()
+    pin.computeJointJacobians(em.model, d, eq.rest)
+    lateral = (output_jacobian(em.model, d, em.outputs) @ dv)[6:8]  # the lateral bars' omega, signed as eq. 30
+    if exaggeration is None:
+        exaggeration = nice(GHOST_SIZE / max(np.linalg.norm(dy[:3]), 1e-12))
+    st = kin.state(h4, x)
+    a = exaggeration
+    q = kin.assemble(h4, PlateState(st.q + a * act, st.D + a * dy[:3], pin.exp3(a * dy[3:]) @ st.R,
+                                    st.omega + a * lateral))
+    what = "its weight" + ("" if payload is None else f" and {payload.mass:g} kg at D") + \
+        ("" if load is None else f" and F = ({', '.join(f'{f:g}' for f in force)}) N")
+    scene.ghost(q, f"red ghost: loaded equilibrium under {what}, exaggerated x{a:g} (true |dD| = "
+                   f"{np.linalg.norm(dy[:3]) * 1e6:.1f} um)")
+    if load is not None:
+        scene.force(x[:3], force)
     return exaggeration
 
 
@@ -202,7 +244,7 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
          exaggeration: float | None = None, field: bool = False, rotational: bool = False,
          model: str = "consistent", vis: meshcat.Visualizer | None = None,
          host: str = meshcat_server.LOCALHOST, mode: int | None = None, payload: Any = None,
-         result: Compliance | None = None) -> Scene:
+         result: Compliance | None = None, gravity: bool = False) -> Scene:
     """Draw the H4 at ``pose`` with its compliance ellipsoid, and optionally more. The compliance
     at the pose is computed once (or given: ``result``) and drawn as the ellipsoid and the ghost.
 
@@ -218,9 +260,11 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
         vis: Existing meshcat visualizer (e.g. in Jupyter); default: a new server.
         host: Interface a new server listens on (default 127.0.0.1, this machine only).
         mode: Also animate this natural mode of the elastic robot (0: the first; :func:`animate_mode`).
-        payload: An :class:`h4pin.Payload` on the plate for ``mode``.
+        payload: An :class:`h4pin.Payload` on the plate for ``mode`` and ``gravity``.
         result: the compliance at ``pose`` with ``model`` (:func:`h4pin.compliance`), if the
             caller has it.
+        gravity: draw the loaded equilibrium under the robot's weight (with ``load`` and
+            ``payload``: :func:`loaded_ghost`) instead of the linear deflection under ``load``.
 
     Returns:
         The :class:`~h4pin.mechanism.scene.Scene` (``scene.url``, ``scene.write_html(path)``,
@@ -242,7 +286,9 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
     try:
         s.pose(x)
         ellipsoid(s, x, res, model, scale, rotational)
-        if load is not None:
+        if gravity:
+            loaded_ghost(s, x, load, payload, exaggeration)
+        elif load is not None:
             ghost(s, x, load, res, model, exaggeration)
         if field:
             ellipsoid_field(s, workspace_grid(h4), model)
@@ -254,5 +300,5 @@ def show(h4: H4, pose: np.ndarray | None = None, load: np.ndarray | None = None,
     return s
 
 
-__all__ = ["CENTRE", "EYE", "animate_mode", "ellipsoid", "ellipsoid_field", "ghost", "scene", "show",
+__all__ = ["CENTRE", "EYE", "animate_mode", "ellipsoid", "ellipsoid_field", "ghost", "loaded_ghost", "scene", "show",
            "workspace_grid"]

@@ -4,13 +4,14 @@ name or Pinocchio id, one item or several, each refused by name when it is not t
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import ParameterError
+from h4pin.mechanism.engine import FrameOutput, JointOutput
 
 
 def items(value: Any, single: tuple[type, ...], what: str) -> list[Any]:
@@ -44,3 +45,59 @@ def joint_names(model: pin.Model, joints: Iterable[Any], what: str) -> tuple[str
         else:
             raise ParameterError(f"{what}: a joint is a name or a Pinocchio joint id, got {j!r}")
     return tuple(out)
+
+
+def checked_springs(mech: Any, springs: Mapping[Any, Any], locked: Iterable[Any] = (),
+                    free_root: bool = False) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """``(springs, locked)`` of a :meth:`Mechanism.compliance` or :meth:`Mechanism.modes` call,
+    checked as the call checks them (names, values, a joint both locked and sprung), by name."""
+    stiff = springs_of(mech, springs)
+    return stiff, locked_of(mech, locked, stiff, free_root)
+
+
+def springs_of(mech: Any, springs: Mapping[Any, Any]) -> dict[str, Any]:
+    """The checked springs of a call, the beams' included."""
+    if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
+        raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
+    names = joint_names(mech.model, list(springs), "springs")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
+    return {**mech.beam_springs, **dict(zip(names, springs.values(), strict=True))}
+
+
+def locked_of(mech: Any, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
+    """The locked joints of a call: ``locked``, and the free-flyer roots unless freed or sprung."""
+    if not isinstance(free_root, bool):
+        raise ParameterError(f"free_root: True or False, got {free_root!r}")
+    names = joint_names(mech.model, locked, "locked")
+    both = sorted(set(names) & set(springs))
+    if both:
+        raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
+    if not free_root:
+        names = names + tuple(n for n in mech.free_flyers if n not in names and n not in springs)
+    return names
+
+
+def outputs_of(mech: Any, outputs: Sequence[Any]) -> list[Any]:
+    """The outputs of a call as :class:`FrameOutput` and :class:`JointOutput` values (a frame name
+    for a frame's 6 rows), each checked against the mechanism's model."""
+    outputs = items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
+    out = []
+    for o in outputs:
+        if isinstance(o, str):
+            if not mech.model.existFrame(o):
+                raise ParameterError(f"outputs: no frame {o!r} in {mech.name}")
+            out.append(FrameOutput(o))
+        elif isinstance(o, FrameOutput):
+            if not mech.model.existFrame(o.frame):
+                raise ParameterError(f"outputs: no frame {o.frame!r} in {mech.name}")
+            out.append(o)
+        elif isinstance(o, JointOutput):
+            joint_names(mech.model, [o.joint], "outputs")
+            out.append(o)
+        else:
+            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
+    if not out:
+        raise ParameterError("outputs: give at least one frame")
+    return out

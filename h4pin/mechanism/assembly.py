@@ -192,13 +192,13 @@ def closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np
     o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
     lwa = pin.LOCAL_WORLD_ALIGNED
     if cm.type == pin.ContactType.CONTACT_3D:
-        j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, lwa)[:3]
-        j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, lwa)[:3]
+        j1 = np.reshape(pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, lwa), (6, model.nv))[:3]
+        j2 = np.reshape(pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, lwa), (6, model.nv))[:3]
         r = o2.translation - o1.translation
         return r, j2 - j1, float(np.linalg.norm(r))
     rel = o1.inverse() * o2
-    j1 = pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL)
-    j2 = pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL)
+    j1 = np.reshape(pin.getFrameJacobian(model, d, cm.joint1_id, cm.joint1_placement, pin.LOCAL), (6, model.nv))
+    j2 = np.reshape(pin.getFrameJacobian(model, d, cm.joint2_id, cm.joint2_placement, pin.LOCAL), (6, model.nv))
     r = pin.log6(rel).vector
     jac = pin.Jlog6(rel) @ (j2 - rel.inverse().toActionMatrix() @ j1)
     return r, jac, float(max(np.linalg.norm(r[:3]), np.linalg.norm(r[3:])))

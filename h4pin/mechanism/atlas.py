@@ -21,8 +21,12 @@ reference assembly), then the compliance of the output frame
 * ``status`` (int8, :data:`STATUS_NAMES`): 0 where all the above hold; 1 where the loops do not
   close (or a joint leaves its range), 2 where a motion strains no spring (a singular
   configuration, or too few springs), 3 where the compliance holds but the frequency does not
-  (nothing with mass). The quantities are NaN where they do not hold; a grid point that fails
-  never stops the atlas.
+  (nothing with mass), 4 where the load of ``gravity=True`` cannot be carried (past a critical
+  load). The quantities are NaN where they do not hold; a grid point that fails never stops the
+  atlas;
+* with ``gravity=True``, ``sag`` (m, dim ``xyz``): the output's displacement under the robot's
+  weight and a ``payload`` (kg at the output), the loaded equilibrium
+  (:meth:`~h4pin.mechanism.Mechanism.equilibrium`, ``docs/loaded.md``).
 
 Springs (:func:`default_springs`): the file's own joint springs when it has them (an MJCF's
 ``stiffness``), else every motor at ``motor_stiffness`` and every other joint at
@@ -62,12 +66,13 @@ import xarray as xr  # noqa: E402
 from h4pin import limits  # noqa: E402
 from h4pin.errors import H4Error, ParameterError  # noqa: E402
 from h4pin.mechanism import store  # noqa: E402
-from h4pin.mechanism.core import Mechanism, checked_springs  # noqa: E402
+from h4pin.mechanism.arguments import checked_springs  # noqa: E402
+from h4pin.mechanism.core import Mechanism  # noqa: E402
 from h4pin.mechanism.engine import UnassembledError  # noqa: E402
 
 #: The verdict of a grid point (``status``), by code.
-STATUS_NAMES = ("ok", "unassembled", "unrestrained", "no frequency")
-OK, UNASSEMBLED, UNRESTRAINED, NO_FREQUENCY = range(4)
+STATUS_NAMES = ("ok", "unassembled", "unrestrained", "no frequency", "over the critical load")
+OK, UNASSEMBLED, UNRESTRAINED, NO_FREQUENCY, CRITICAL = range(5)
 #: The quantities of a motor-space atlas: (units, description).
 QUANTITIES = dict(
     compliance_max=("m/N", "largest eigenvalue of the symmetric part of C_tt (worst-direction compliance)"),
@@ -77,8 +82,10 @@ QUANTITIES = dict(
     configuration=("rad, m", "assembled configuration (Pinocchio's q)"),
 )
 FREQUENCY = dict(first_frequency=("Hz", "lowest natural frequency (model inertias, the atlas's springs)"))
+#: The quantity an atlas adds with ``gravity=True``.
+LOADED = dict(sag=("m", "output's displacement under the robot's weight and payload (loaded equilibrium)"))
 #: Extra dims of the quantities that have them.
-_EXTRA = {"compliance_axes": ("axis",), "compliance_vectors": ("xyz", "axis"), "position": ("xyz",),
+_EXTRA = {"compliance_axes": ("axis",), "compliance_vectors": ("xyz", "axis"), "position": ("xyz",), "sag": ("xyz",),
           "configuration": ("coordinate",)}
 #: Default grid: a motor's range from its file where finite, else the reference assembly's motor
 #: position +- these (rad for a revolute motor, m for a prismatic one).
@@ -98,12 +105,19 @@ SECONDS_PER_POINT, BYTES_PER_POINT = 2e-2, 2 * (1 + 3 + 9 + 3 + 1) * 8
 @dataclasses.dataclass(frozen=True)
 class Setup:
     """What fixes the numbers of an atlas besides the robot and the grid: the output frame, the
-    springs ``{joint: stiffness}``, the locked joints and whether the frequency is computed."""
+    springs ``{joint: stiffness}``, the locked joints, whether the frequency is computed, and
+    whether the sag under gravity is (with ``payload`` kg at the output)."""
 
     output: str
     springs: dict[str, Any]
     locked: tuple[str, ...] = ()
     frequency: bool = False
+    gravity: bool = False
+    payload: float = 0.0
+
+    def extras(self) -> tuple[str, ...]:
+        """The optional quantities this setup computes."""
+        return (*(FREQUENCY if self.frequency else ()), *(LOADED if self.gravity else ()))
 
 
 def default_springs(mech: Mechanism, motor_stiffness: float = MOTOR_STIFFNESS,
@@ -234,12 +248,13 @@ def _fingerprint(mech: Mechanism, axes: dict[str, np.ndarray], setup: Setup, blo
     for a in (mech.reference, *mech.ranges, *axes.values()):
         h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
     h.update(json.dumps([list(mech.actuated), list(axes), sorted(setup.springs.items(), key=str), list(setup.locked),
-                         setup.output, setup.frequency, list(block)], default=repr).encode())
+                         setup.output, setup.frequency, list(block), setup.gravity, setup.payload],
+                        default=repr).encode())
     return h.hexdigest()
 
 
 def _setup(mech: Mechanism, output: str, springs: Mapping[str, Any] | None, locked: Iterable[str],
-           frequency: bool) -> Setup:
+           frequency: bool, loaded: tuple[bool, float] = (False, 0.0)) -> Setup:
     if not isinstance(mech, Mechanism):
         raise ParameterError(f"mechanism: an h4pin.mechanism.Mechanism, got {type(mech).__name__}")
     if not isinstance(output, str) or not mech.model.existFrame(output):
@@ -249,28 +264,35 @@ def _setup(mech: Mechanism, output: str, springs: Mapping[str, Any] | None, lock
     locked = tuple(locked)
     springs = default_springs(mech, locked=locked) if springs is None else dict(springs)
     checked_springs(mech, springs, locked)  # checked now: names, values, both locked and sprung
-    return Setup(output, springs, locked, frequency)
+    gravity, payload = loaded
+    if not isinstance(gravity, bool):
+        raise ParameterError(f"gravity: True or False, got {gravity!r}")
+    payload = float(limits.check_range("payload", payload, "payload"))
+    if payload > 0 and not gravity:
+        raise ParameterError("payload: its weight acts only with gravity=True")
+    return Setup(output, springs, locked, frequency, gravity, payload)
 
 
 def _plan(mech: Mechanism, output: str, axes: Any, springs: Any, locked: Iterable[str], frequency: bool, chunk: int,
-          streamed: bool) -> tuple[Any, np.ndarray, dict[str, np.ndarray], tuple[int, ...], tuple[int, ...],
-                                   tuple[int, ...]]:
+          streamed: bool, loaded: tuple[bool, float]) -> tuple[Any, np.ndarray, dict[str, np.ndarray], tuple[int, ...],
+                                                              tuple[int, ...], tuple[int, ...]]:
     """An atlas's setup, reference assembly, motor axes, grid shape, block and block grid, its
     size checked (:func:`atlas` and :func:`stream`)."""
-    setup = _setup(mech, output, springs, locked, frequency)
+    setup = _setup(mech, output, springs, locked, frequency, loaded)
     reference = mech.assemble()
     grid_axes = motor_axes(mech, axes, reference)
     shape = tuple(len(v) for v in grid_axes.values())
     block, grid = store.block_layout(shape, chunk)
-    _check_memory(mech, shape, chunk, frequency, streamed)
+    _check_memory(mech, shape, chunk, frequency, streamed, setup.gravity)
     return setup, reference, grid_axes, shape, block, grid
 
 
-def _check_memory(mech: Mechanism, shape: tuple[int, ...], chunk: int, frequency: bool, streamed: bool) -> None:
+def _check_memory(mech: Mechanism, shape: tuple[int, ...], chunk: int, frequency: bool, streamed: bool,
+                  gravity: bool = False) -> None:
     n = math.prod(shape)
     per = BYTES_PER_POINT + 16 * mech.model.nq  # the quantities; the configurations (kept for continuation)
     need = n * (per if not streamed else 8 * mech.model.nq + 2) + min(n, chunk) * 4096
-    seconds = n * SECONDS_PER_POINT * (1.5 if frequency else 1.0)
+    seconds = n * SECONDS_PER_POINT * (1.5 if frequency else 1.0) + (n * 1e-4 * mech.model.nv ** 2 if gravity else 0)
     limits.check_size(f"{mech.name}: a motor-space atlas of {n:,} points", need, seconds,
                       "use fewer points per motor")
 
@@ -278,7 +300,7 @@ def _check_memory(mech: Mechanism, shape: tuple[int, ...], chunk: int, frequency
 def _template(mech: Mechanism, axes: dict[str, np.ndarray], setup: Setup, data: dict[str, Any]) -> xr.Dataset:
     """The atlas Dataset of the arrays ``data`` (numpy, or dask for a store's template)."""
     dims = tuple(_dim(m) for m in axes)
-    known = {**QUANTITIES, **FREQUENCY}
+    known = {**QUANTITIES, **FREQUENCY, **LOADED}
     out = {q: ((*dims, *_EXTRA.get(q, ())), data[q], {"units": known[q][0], "long_name": known[q][1]})
            for q in known if q in data}
     out["status"] = (dims, data["status"], {
@@ -291,13 +313,13 @@ def _template(mech: Mechanism, axes: dict[str, np.ndarray], setup: Setup, data: 
         "title": f"motor-space atlas of {mech.name}", "h4pin": "atlas", "kind": "mechanism",
         "mechanism": mech.name, "output": setup.output, "motors": json.dumps(list(axes)),
         "springs": json.dumps(setup.springs, default=lambda v: np.asarray(v, float).tolist()),
-        "locked": json.dumps(list(setup.locked)),
+        "locked": json.dumps(list(setup.locked)), "gravity": int(setup.gravity), "payload_kg": setup.payload,
         "reference": "h4pin.mechanism.Mechanism.compliance (world axes), .assemble, .modes"})
 
 
-def _empty(mech: Mechanism, shape: tuple[int, ...], frequency: bool, full: Any = np.full) -> dict[str, Any]:
+def _empty(mech: Mechanism, shape: tuple[int, ...], setup: Setup, full: Any = np.full) -> dict[str, Any]:
     sizes = {"axis": 3, "xyz": 3, "coordinate": mech.model.nq}
-    q = [*QUANTITIES, *(FREQUENCY if frequency else ())]
+    q = [*QUANTITIES, *setup.extras()]
     return {k: full((*shape, *(sizes[d] for d in _EXTRA.get(k, ()))), np.nan) for k in q}
 
 
@@ -335,7 +357,7 @@ class _Run:
         """The fields (flat, in the order of ``points``) and the status of one block."""
         mech, s = self.mech, self.setup
         n = len(points)
-        f = _empty(mech, (n,), s.frequency)
+        f = _empty(mech, (n,), s)
         status = np.full(n, UNASSEMBLED, dtype=np.int8)
         before = None
         for k, p in enumerate(points):
@@ -367,8 +389,27 @@ class _Run:
                                 f["configuration"][good], ())
             f["first_frequency"][good] = first
             status[good[~(np.isfinite(first) & (first > 0))]] = NO_FREQUENCY
+        if s.gravity:
+            self._sag(f, status)
         f["status"] = status
         return f
+
+    def _sag(self, f: dict[str, np.ndarray], status: np.ndarray) -> None:
+        """The output's displacement under gravity (and the payload) at each point of status 0:
+        :meth:`Mechanism.equilibrium`; status :data:`CRITICAL` where the load cannot be carried."""
+        from h4pin.mechanism.loaded import LimitLoadError
+        from h4pin.mechanism.payload import Payload
+
+        s = self.setup
+        payload = (s.output, Payload(s.payload)) if s.payload > 0 else None
+        for k in np.flatnonzero(status == OK):
+            try:
+                eq = self.mech.equilibrium(f["configuration"][k], s.springs, gravity=True, payload=payload,
+                                           locked=s.locked)
+            except (LimitLoadError, H4Error):
+                status[k] = CRITICAL
+                continue
+            f["sag"][k] = eq.displacement(s.output)[:3]
 
     @staticmethod
     def _batch(call: Any, Q: np.ndarray, tail: tuple[int, ...]) -> np.ndarray:
@@ -391,7 +432,7 @@ class _Run:
 def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
           springs: Mapping[str, Any] | None = None, locked: Iterable[str] = (), *, frequency: bool = False,
           chunk: int = CHUNK, threads: int | None = None, progress: bool = True,
-          out: str | Path | None = None) -> xr.Dataset:
+          out: str | Path | None = None, gravity: bool = False, payload: float = 0.0) -> xr.Dataset:
     """The motor-space atlas of ``mech`` at the frame ``output`` (module docstring).
 
     Args:
@@ -401,6 +442,9 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
             take the default range).
         springs, locked: as :meth:`Mechanism.compliance` (default :func:`default_springs`).
         frequency: also the first natural frequency (Hz).
+        gravity: also ``sag`` (m, ``xyz``): the output's displacement under the robot's weight and
+            ``payload`` kg at the output, the loaded equilibrium (:meth:`Mechanism.equilibrium`);
+            status 4 where the load cannot be carried.
         chunk: grid points per block (whole rows of the last motor; a zarr chunk).
         threads: threads of each block's compliance (default one per core).
         progress: a tqdm progress bar.
@@ -414,12 +458,12 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
     """
     if out is not None and Path(out).suffix == ".zarr":
         return stream(mech, output, axes, springs, locked, out=out, frequency=frequency, chunk=chunk,
-                      threads=threads, progress=progress)
+                      threads=threads, progress=progress, gravity=gravity, payload=payload)
     if out is not None:
         store.check_out(out)
     setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
-                                                            False)
-    data = _empty(mech, shape, frequency)
+                                                            False, (gravity, payload))
+    data = _empty(mech, shape, setup)
     data["status"] = np.zeros(shape, dtype=np.int8)
     run = _Run(mech, grid_axes, setup, threads, data["configuration"], np.zeros(shape, bool), np.zeros(shape, bool),
                reference)
@@ -440,7 +484,7 @@ def atlas(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
 def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
            springs: Mapping[str, Any] | None = None, locked: Iterable[str] = (), *, out: str | Path,
            frequency: bool = False, chunk: int = CHUNK, threads: int | None = None, progress: bool = True,
-           stop_after: int | None = None) -> xr.Dataset | None:
+           stop_after: int | None = None, gravity: bool = False, payload: float = 0.0) -> xr.Dataset | None:
     """:func:`atlas` streamed into the zarr store ``out`` (:func:`h4pin.mechanism.store.partial`):
     the arrays made first in the partial store beside ``out`` (its lock and fingerprint: the robot,
     grid, setup and blocks), each block written and flagged done as it is computed, the store
@@ -456,18 +500,17 @@ def stream(mech: Mechanism, output: str, axes: Mapping[str, Any] | None = None,
 
     path = store.check_stream(out, "out")
     setup, reference, grid_axes, shape, block, grid = _plan(mech, output, axes, springs, locked, frequency, chunk,
-                                                            True)
-    lazy = _empty(mech, shape, frequency, lambda s, v: da.full(s, v, chunks=(*block, *s[len(shape):])))
+                                                            True, (gravity, payload))
+    lazy = _empty(mech, shape, setup, lambda s, v: da.full(s, v, chunks=(*block, *s[len(shape):])))
     lazy["status"] = da.zeros(shape, dtype=np.int8, chunks=block)
     with store.partial(path, _template(mech, grid_axes, setup, lazy), _fingerprint(mech, grid_axes, setup, block),
                        math.prod(grid)) as group:
-        return _fill(mech, path, group, grid_axes, setup, shape, block, grid, reference, frequency, threads,
-                     progress, stop_after)
+        return _fill(mech, path, group, grid_axes, setup, shape, block, grid, reference, threads, progress, stop_after)
 
 
 def _fill(mech: Mechanism, path: Path, group: Any, grid_axes: dict[str, np.ndarray], setup: Any,
           shape: tuple[int, ...], block: tuple[int, ...], grid: tuple[int, ...], reference: np.ndarray,
-          frequency: bool, threads: int | None, progress: bool, stop_after: int | None) -> xr.Dataset | None:
+          threads: int | None, progress: bool, stop_after: int | None) -> xr.Dataset | None:
     """The blocks :func:`stream` has not done yet, into its partial store, then the store moved
     into place (the caller holds the store's lock)."""
     done = group[store.DONE]
@@ -478,7 +521,7 @@ def _fill(mech: Mechanism, path: Path, group: Any, grid_axes: dict[str, np.ndarr
     status = group["status"][:]
     Q = np.where(known[..., None], group["configuration"][:], np.nan)
     run = _Run(mech, grid_axes, setup, threads, Q, known, known & (status != UNASSEMBLED), reference)
-    arrays = {q: group[q] for q in (*QUANTITIES, *(FREQUENCY if frequency else ()), "status")}
+    arrays = {q: group[q] for q in (*QUANTITIES, *setup.extras(), "status")}
     todo = np.flatnonzero(~flags)
     with tqdm(total=math.prod(shape), desc="atlas", unit="point", disable=not progress,
               initial=int(known.sum())) as bar:

@@ -16,9 +16,12 @@ configuration, massless (the link's inertia stays as the file gives it):
 
 * a slide along x, stiffness ``EA / L``; a hinge about x, ``GJ / L``;
 * per bending plane, two hinges about the bending axis through the two Gauss-Legendre points of
-  the span (``L/2 ∓ L/(2√3)`` from the far end), each of stiffness ``2 EI / L``: a two-point rule
+  the span (``L/2 ∓ L/(2√3)`` from the near end), each of stiffness ``2 EI / L``: a two-point rule
   integrates the cantilever's ``∫ (s, 1)(s, 1)ᵀ ds / EI`` exactly, so the far end's 6 x 6
-  compliance is the beam's to round-off.
+  compliance is the beam's to round-off. With ``segments = n``, two such hinges per plane in each
+  of n equal segments, ``2 EI n / L`` each, the same far-end compliance. The hinges are chained
+  from the near end to the far one (``bend_z1``, ``bend_y1`` at the first point, and so on), so
+  that under load the chain bends as the beam does.
 
 The same :func:`h4pin.mechanism.engine.insert_joints` hangs the H4's element joints.
 """
@@ -38,6 +41,8 @@ from h4pin.mechanism.engine import Insertion, VirtualJoint
 #: The virtual joints of a beam on link ``<link>``: ``<link>_beam_<suffix>``.
 SUFFIXES = ("axial", "torsion", "bend_z1", "bend_z2", "bend_y1", "bend_y2")
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
+#: The most segments a beam takes (its virtual joints: 2 + 4 a segment).
+MAX_SEGMENTS = 200
 
 
 def _positive(name: str, value: Any, unit: str, rigid: bool = False) -> float:
@@ -58,7 +63,11 @@ class Beam:
     ``inf``: rigid that way, no virtual joint); ``to``: the far end's name (a child
     joint, a closure or a frame of the link) where the link has several; ``carry``: further
     attachments of the link (child joints, closures, frames) fixed to the far end rather than to
-    the near one (a cross-bar at a forearm's tip, say)."""
+    the near one (a cross-bar at a forearm's tip, say); ``segments``: the span cut into that many
+    equal segments, each with its two Gauss hinges per bending plane (``2 EI n / L`` each), in order
+    from the near end: the far end's compliance is the same for any count, while the chain follows
+    a bent beam's shape ever closer, so that a buckling load converges to Euler's as the count grows
+    (``docs/loaded.md`` says how many give 1 %)."""
 
     E: float
     G: float
@@ -68,8 +77,13 @@ class Beam:
     J: float
     to: str | None = None
     carry: tuple[str, ...] = ()
+    segments: int = 1
 
     def __post_init__(self) -> None:
+        if isinstance(self.segments, bool) or not isinstance(self.segments, (int, np.integer)) or \
+                not 1 <= self.segments <= MAX_SEGMENTS:
+            raise ParameterError(f"Beam: segments must be an integer from 1 to {MAX_SEGMENTS}, got {self.segments!r}")
+        object.__setattr__(self, "segments", int(self.segments))
         for name, unit in (("E", "Pa"), ("G", "Pa"), ("A", "m^2"), ("Iy", "m^4"), ("Iz", "m^4"), ("J", "m^4")):
             object.__setattr__(self, name, _positive(name, getattr(self, name), unit, rigid=name not in "EG"))
         if self.to is not None and not isinstance(self.to, str):
@@ -118,11 +132,12 @@ class Beam:
         z = np.cross(x, y)
         out = [VirtualJoint(f"{link}_beam_axial", "prismatic", x, near, self.E * self.A / length),
                VirtualJoint(f"{link}_beam_torsion", "revolute", x, near, self.G * self.J / length)]
-        for axis, second, tag in ((z, self.Iz, "z"), (y, self.Iy, "y")):
-            for k, g in enumerate(_GAUSS, start=1):
-                point = far - g * length * x
-                out.append(VirtualJoint(f"{link}_beam_bend_{tag}{k}", "revolute", axis, point,
-                                        2.0 * self.E * second / length))
+        piece = length / self.segments
+        for k, s in enumerate((i + g) * piece for i in range(self.segments) for g in _GAUSS):
+            point = np.asarray(near, float) + s * x
+            for axis, second, tag in ((z, self.Iz, "z"), (y, self.Iy, "y")):
+                out.append(VirtualJoint(f"{link}_beam_bend_{tag}{k + 1}", "revolute", axis, point,
+                                        2.0 * self.E * second / piece))
         return tuple(out)
 
 
@@ -151,8 +166,9 @@ def insertion(model: pin.Model, data: pin.Data, constraint_models: Any, link: st
                                               (cm.joint2_id, cm.joint2_placement)), start=1):
             if jid == joint:
                 ends[cm.name or f"closure_{i + 1}"] = ("closure", (i, side), (om * place).translation)
-    if not ends:
-        raise ParameterError(f"beams: link {link!r} has no far end (no child joint, no closure on it)")
+    if not ends and beam.to is None:
+        raise ParameterError(f"beams: link {link!r} has no far end (no child joint, no closure on it; name a frame of "
+                             "it with Beam(..., to=name))")
     if beam.to is None:
         if len(ends) > 1:
             raise ParameterError(f"beams: link {link!r} has several far ends: {', '.join(ends)}; pick one with "
@@ -194,4 +210,4 @@ def insertion(model: pin.Model, data: pin.Data, constraint_models: Any, link: st
                      closures=tuple(r for k, r in every if k == "closure"))
 
 
-__all__ = ["SUFFIXES", "Beam", "insertion"]
+__all__ = ["MAX_SEGMENTS", "SUFFIXES", "Beam", "insertion"]

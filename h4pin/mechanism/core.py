@@ -35,12 +35,10 @@ from h4pin._compat import constraint_calc
 from h4pin.errors import MalformedURDFError, ParameterError, UnsupportedFeatureError
 from h4pin.inputs import check_choice
 from h4pin.lookup import finite_configuration, model_configuration
-from h4pin.mechanism import assembly, batch, engine
-from h4pin.mechanism.arguments import items, joint_names
+from h4pin.mechanism import assembly, batch, engine, loaded
+from h4pin.mechanism.arguments import joint_names, locked_of, outputs_of, springs_of
 from h4pin.mechanism.couplings import JointCoupling
 from h4pin.mechanism.engine import (
-    FrameOutput,
-    JointOutput,
     Modes,
     admissible_basis,
     undamped_modes,
@@ -89,7 +87,7 @@ def _closures(model: pin.Model, constraint_models: Iterable[Any]) -> Any:
     return out
 
 
-class Mechanism:
+class Mechanism(loaded.UnderLoad):
     """A closed-loop robot: a Pinocchio tree, its loop closures and its actuated joints (module
     docstring). Immutable; the model and closures are copies of what was given, a ``pin.Data``
     is made per calling thread.
@@ -173,13 +171,23 @@ class Mechanism:
         urdf_path = Path(urdf_path)
         side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
         model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
+        if side.gravity is not None:
+            model.gravity = pin.Motion(np.array(side.gravity), np.zeros(3))
         motors = side.motors if actuated is None else actuated
         try:
             names = joint_names(model, motors, f"{side.path}: name_mot")
         except ParameterError as exc:
             raise MalformedURDFError(str(exc)) from None
         ranges = _urdf_ranges(model)
-        mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model), ranges=ranges)
+        try:
+            springs = {n: k for n, k in side.springs.items() if n not in side.elastic}
+            mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model),
+                       ranges=ranges, springs=springs or None)
+            if side.elastic:
+                joint_names(model, side.elastic, "elastic")
+                object.__setattr__(mech, "beam_springs", {n: side.springs[n] for n in side.elastic})
+        except ParameterError as exc:
+            raise MalformedURDFError(f"{side.path}: {exc}") from None
         if side.beams:
             try:
                 return mech.with_beams(side.beams)
@@ -191,12 +199,17 @@ class Mechanism:
     def from_elastic(cls, em: Any) -> Mechanism:
         """An elastic H4 (:func:`h4pin.elastic.elastic_model`) as a mechanism: its tree, closures
         and four actuators, with the inertias :func:`h4pin.modes` uses (each forearm on its
-        actuator's spring): ``compliance(q, em.stiffness, ["D"], locked=em.locked)`` and
-        :meth:`modes` give the elastic model's numbers through the generic calls. (Nothing of
-        the H4 is imported here: ``em`` gives its own mass model.)"""
-        if not all(hasattr(em, a) for a in ("mass_model", "constraint_models", "locked", "stiffness")):
+        actuator's spring), its virtual joints' springs as the mechanism's own (as a beam's:
+        :attr:`beam_springs`, held in a rigid assembly) and the H4's rigid configurations lifted
+        (:meth:`configuration`): ``compliance(q, {}, ["D"], locked=em.locked)`` and :meth:`modes`
+        give the elastic model's numbers through the generic calls. (Nothing of the H4 is
+        imported here: ``em`` gives its own mass model.)"""
+        if not all(hasattr(em, a) for a in ("mass_model", "constraint_models", "locked", "stiffness", "q_index")):
             raise ParameterError(f"em: an h4pin.elastic.ElasticH4 (h4pin.elastic_model(h4)), got {type(em).__name__}")
-        return cls(em.mass_model(), em.constraint_models, em.locked, name="elastic H4")
+        mech = cls(em.mass_model(), em.constraint_models, em.locked, name="elastic H4")
+        object.__setattr__(mech, "beam_springs", dict(em.stiffness))
+        object.__setattr__(mech, "_lift", (np.asarray(em.q_index), len(em.q_index)))
+        return mech
 
     @classmethod
     def from_mjcf(cls, path: str | Path, *, actuated: Iterable[Any] | None = None) -> Mechanism:
@@ -204,7 +217,7 @@ class Mechanism:
         closures (Pinocchio 4's reader; a body's several joints, which that reader merges into
         one composite joint, are split back into the file's joints, each with its name; a fixed
         root body's placement on the world, which it drops, put back), its ``<equality><joint>``
-        couplings as :attr:`couplings` (:class:`~h4pin.elastic.couplings.JointCoupling`), the
+        couplings as :attr:`couplings` (:class:`~h4pin.mechanism.couplings.JointCoupling`), the
         joints of its ``<actuator>`` elements as the motors (or ``actuated``), and from MuJoCo's
         own compiler: the reference configuration (the first keyframe, else ``qpos0``: each
         joint's ``ref``), the joints' ranges as the file states them, the joints' ``stiffness``
@@ -252,6 +265,11 @@ class Mechanism:
                 far end or several without ``to``.
         """
         return _with_beams(self, beams)
+
+    def with_model(self, model: pin.Model) -> Mechanism:
+        """The same mechanism (closures, motors, springs, beams, ranges) on ``model``: the same
+        tree, with other joint placements, frames or inertias (a calibrated robot, say)."""
+        return on_model(self, model)
 
     def to_mjcf(self, path: str | Path, springs: Mapping[Any, Any], q: Any = None, **options: Any) -> Path:
         """Write an elastic MuJoCo model, the springs as joint stiffness at rest at q (default
@@ -342,9 +360,9 @@ class Mechanism:
             UnrestrainedMotionError: a motion strains no spring (the joints it moves).
             TooLargeError: a batch over the memory or time limit.
         """
-        stiff = _springs(self, springs)
-        lock = _locked(self, locked, stiff, free_root)
-        outs = _outputs(self, outputs)
+        stiff = springs_of(self, springs)
+        lock = locked_of(self, locked, stiff, free_root)
+        outs = outputs_of(self, outputs)
         method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         out = batch.compliance(self, Q, one, stiff, outs, lock, method, threads)
@@ -365,8 +383,8 @@ class Mechanism:
         Raises:
             as :meth:`compliance`; ParameterError: nothing has mass.
         """
-        stiff = _springs(self, springs)
-        lock = _locked(self, locked, stiff, free_root)
+        stiff = springs_of(self, springs)
+        lock = locked_of(self, locked, stiff, free_root)
         method, threads = check_choice(method, batch.METHODS, "method"), batch.check_threads(threads)
         Q, one = batch.configurations(self, q)
         if one:
@@ -374,38 +392,6 @@ class Mechanism:
         freq = batch.frequencies(self, Q, stiff, lock, payload, method, threads,
                                  lambda x: _modes_one(self, x, stiff, lock, payload).frequencies)
         return Modes(freq, np.sum(np.isfinite(freq), axis=1), np.zeros(len(freq), dtype=np.int8), payload)
-
-
-def checked_springs(mech: Mechanism, springs: Mapping[Any, Any], locked: Iterable[Any] = (),
-                    free_root: bool = False) -> tuple[dict[str, Any], tuple[str, ...]]:
-    """``(springs, locked)`` of a :meth:`Mechanism.compliance` or :meth:`Mechanism.modes` call,
-    checked as the call checks them (names, values, a joint both locked and sprung), by name."""
-    stiff = _springs(mech, springs)
-    return stiff, _locked(mech, locked, stiff, free_root)
-
-
-def _springs(mech: Mechanism, springs: Mapping[Any, Any]) -> dict[str, Any]:
-    """The checked springs of a call, the beams' included."""
-    if not isinstance(springs, Mapping) or not (springs or mech.beam_springs):
-        raise ParameterError(f"springs: a mapping {{joint: stiffness}} with at least one spring, got {springs!r}")
-    names = joint_names(mech.model, list(springs), "springs")
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ParameterError(f"springs: joint {twice[0]!r} is given twice (by name and by id?)")
-    return {**mech.beam_springs, **dict(zip(names, springs.values(), strict=True))}
-
-
-def _locked(mech: Mechanism, locked: Iterable[Any], springs: Mapping[str, Any], free_root: bool) -> tuple[str, ...]:
-    """The locked joints of a call: ``locked``, and the free-flyer roots unless freed or sprung."""
-    if not isinstance(free_root, bool):
-        raise ParameterError(f"free_root: True or False, got {free_root!r}")
-    names = joint_names(mech.model, locked, "locked")
-    both = sorted(set(names) & set(springs))
-    if both:
-        raise ParameterError(f"joint {both[0]!r} cannot be both locked and sprung")
-    if not free_root:
-        names = names + tuple(n for n in mech.free_flyers if n not in names and n not in springs)
-    return names
 
 
 def _modes_one(mech: Mechanism, q: np.ndarray, stiff: dict[str, Any], lock: tuple[str, ...],
@@ -454,53 +440,56 @@ def _file_data(model: pin.Model, closures: Any, reference: Any, ranges: Any, spr
             "beam_springs": {}, "_lift": None, "free_flyers": roots}
 
 
-def _outputs(mech: Mechanism, outputs: Sequence[Any]) -> list[Any]:
-    outputs = items(outputs, (str, FrameOutput, JointOutput), "outputs: frame names, FrameOutput or JointOutput")
-    out = []
-    for o in outputs:
-        if isinstance(o, str):
-            if not mech.model.existFrame(o):
-                raise ParameterError(f"outputs: no frame {o!r} in {mech.name}")
-            out.append(FrameOutput(o))
-        elif isinstance(o, FrameOutput):
-            if not mech.model.existFrame(o.frame):
-                raise ParameterError(f"outputs: no frame {o.frame!r} in {mech.name}")
-            out.append(o)
-        elif isinstance(o, JointOutput):
-            joint_names(mech.model, [o.joint], "outputs")
-            out.append(o)
-        else:
-            raise ParameterError(f"outputs: frame names, FrameOutput or JointOutput, got {o!r}")
-    if not out:
-        raise ParameterError("outputs: give at least one frame")
-    return out
-
-
 def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     """:meth:`Mechanism.with_beams`."""
     from h4pin.mechanism import beams as bm
 
     if not isinstance(beams, Mapping) or not beams:
         raise ParameterError(f"beams: a mapping {{link name: h4pin.mechanism.Beam}}, got {beams!r}")
-    model = mech.model
-    d = model.createData()
-    pin.framesForwardKinematics(model, d, mech.reference)
-    ins = [bm.insertion(model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
+    d = mech.model.createData()
+    pin.framesForwardKinematics(mech.model, d, mech.reference)
+    ins = [bm.insertion(mech.model, d, mech.constraint_models, link, beam) for link, beam in beams.items()]
     parents = [i.parent for i in ins]
     if len(set(parents)) != len(parents):
         raise ParameterError("beams: two links on one joint; one beam per joint")
-    new_model, new_cms, q_index = engine.insert_joints(model, ins, mech.constraint_models, mech.reference)
+    return inserted(mech, ins, f"{mech.name} with beams")
+
+
+def inserted(mech: Mechanism, insertions: Sequence[Any], name: str, internal: bool = True) -> Mechanism:
+    """A new mechanism with the chains of virtual joints ``insertions``
+    (:func:`h4pin.mechanism.engine.insert_joints`) at the reference configuration, its closures,
+    motors, ranges, springs and couplings carried over; a configuration of ``mech`` is accepted as it
+    is (the new joints at 0). ``internal``: the new joints' springs are the mechanism's own
+    (:attr:`Mechanism.beam_springs`, held in a rigid assembly), as a beam's."""
+    model = mech.model
+    new_model, new_cms, q_index = engine.insert_joints(model, insertions, mech.constraint_models, mech.reference)
     lift = np.zeros(new_model.nq)
     lift[q_index] = mech.reference
     lo, hi = (np.full(new_model.nq, np.nan) for _ in range(2))
     lo[q_index], hi[q_index] = mech.ranges
-    out = Mechanism(new_model, new_cms, mech.actuated, name=f"{mech.name} with beams", reference=lift,
-                    ranges=(lo, hi), springs=mech.springs, couplings=mech.couplings)
-    object.__setattr__(out, "beam_springs", {j.name: j.stiffness for i in ins for j in i.joints
-                                             if math.isfinite(j.stiffness)})
-    object.__setattr__(out, "_lift", (np.asarray(q_index), model.nq))
+    out = Mechanism(new_model, new_cms, mech.actuated, name=name, reference=lift, ranges=(lo, hi),
+                    springs=mech.springs, couplings=mech.couplings)
+    own = {j.name: j.stiffness for i in insertions for j in i.joints if math.isfinite(j.stiffness)}
+    object.__setattr__(out, "beam_springs", {**mech.beam_springs, **own} if internal else dict(mech.beam_springs))
+    previous = mech._lift
+    index = np.asarray(q_index) if previous is None else np.asarray(q_index)[previous[0]]
+    object.__setattr__(out, "_lift", (index, model.nq if previous is None else previous[1]))
     object.__setattr__(out, "spring_rest", dict(mech.spring_rest))
     return out
 
 
-__all__ = ["Mechanism", "checked_springs"]
+def on_model(mech: Mechanism, model: pin.Model) -> Mechanism:
+    """:meth:`Mechanism.with_model`."""
+    if not isinstance(model, pin.Model) or model.njoints != mech.model.njoints or list(model.names) != list(
+            mech.model.names) or any(a.shortname() != b.shortname() for a, b in zip(model.joints, mech.model.joints,
+                                                                                     strict=True)):
+        raise ParameterError("model: the same tree as the mechanism's (its joints, names and kinds), other "
+                             "placements or inertias")
+    out = object.__new__(Mechanism)
+    out.__dict__.update(mech.__dict__)
+    object.__setattr__(out, "model", pin.Model(model))
+    object.__setattr__(out, "_local", threading.local())
+    return out
+
+
+__all__ = ["Mechanism"]

@@ -230,7 +230,8 @@ def output_jacobian(model: pin.Model, data: pin.Data, outputs: Sequence[Output])
     rows = []
     for out in outputs:
         if isinstance(out, FrameOutput):
-            jac = pin.getFrameJacobian(model, data, frame_id(model, out.frame, out.kind, "outputs"), out.reference)
+            jac = np.reshape(pin.getFrameJacobian(model, data, frame_id(model, out.frame, out.kind, "outputs"),
+                                                  out.reference), (6, model.nv))  # (6,) for one coordinate
             rows.append(jac[list(out.rows)])
         elif isinstance(out, JointOutput):
             sel = np.zeros((model.joints[_joint_id(model, out.joint, "outputs")].nv, model.nv))
@@ -252,7 +253,7 @@ def closure_residual(cm: Any, cd: Any) -> tuple[float, float]:
 def _scaling(model: pin.Model, data: pin.Data, constraint_models: Any, length: float) -> tuple[np.ndarray, np.ndarray]:
     """Column scale (nv,): L on translational velocity coordinates (zero angular part in
     ``data.J``), 1 elsewhere; row scale of Jc: 1/L on its translational rows."""
-    col = np.where(np.linalg.norm(data.J[3:], axis=0) == 0.0, length, 1.0)
+    col = np.where(np.linalg.norm(np.reshape(data.J, (6, model.nv))[3:], axis=0) == 0.0, length, 1.0)
     row = []
     for cm in constraint_models:
         if cm.type == pin.ContactType.CONTACT_3D:

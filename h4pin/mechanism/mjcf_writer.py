@@ -392,9 +392,31 @@ def _keyframe(mujoco: Any, s: Any, values: Mapping[str, float]) -> None:
     key.name, key.qpos = KEYFRAME, floats(qpos)
 
 
+def _payload(s: Any, mech: Any, bodies: dict[int, Any], payload: Any) -> None:
+    """A body ``payload`` fixed at the payload's frame: its mass, centre of mass and inertia."""
+    from h4pin.mechanism.payload import Payload
+
+    try:
+        frame, body = payload
+    except (TypeError, ValueError):
+        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
+    if not isinstance(body, Payload) or not isinstance(frame, str) or not mech.model.existFrame(frame):
+        raise ParameterError(f"payload: (frame name of the model, h4pin.mechanism.Payload), got {payload!r}")
+    f = mech.model.frames[mech.model.getFrameId(frame)]
+    b = bodies[int(f.parentJoint)].add_body()
+    b.name, b.pos, b.quat = "payload", floats(f.placement.translation), quaternion(f.placement.rotation)
+    if body.mass > 0:
+        b.mass, b.ipos = float(body.mass), floats(body.com)
+        i = np.asarray(body.inertia, float) + np.eye(3) * CHAIN_MASS[1]  # MuJoCo wants inertia on a mass
+        b.fullinertia = floats([i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]])
+        if hasattr(b, "explicitinertial"):
+            b.explicitinertial = True
+
+
 def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterable[Any] = (),
          sites: Iterable[str] = (), name: str | None = None, damping: float = DAMPING,
-         solref: Any = None, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP) -> Any:
+         solref: Any = None, solimp: Any = ELASTIC_SOLIMP, timestep: float = ELASTIC_TIMESTEP,
+         payload: Any = None) -> Any:
     """The mechanism with its springs as a ``mujoco.MjSpec`` (not compiled; what it holds: the
     module's description).
 
@@ -415,6 +437,9 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
             ``2.5e3 m / timestep^2`` (N/m; m the mass it moves, ``docs/mechanisms.md``): a light
             mechanism (links of grams) needs a smaller step than the default for its closures to
             stay far stiffer than its springs.
+        payload: ``(frame, h4pin.mechanism.Payload)``: a body of its mass, centre of mass and
+            inertia (in the frame's axes) fixed to that frame, as
+            :meth:`Mechanism.equilibrium <h4pin.mechanism.Mechanism.equilibrium>` weighs it.
 
     Raises:
         MissingExtraError: MuJoCo is not installed, or older than :data:`MIN_MUJOCO_ELASTIC`.
@@ -450,6 +475,8 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
         site = bodies[int(f.parentJoint)].add_site()
         site.name, site.pos, site.quat = frame, floats(f.placement.translation), quaternion(f.placement.rotation)
         site.size, site.group = [0.004, 0.0, 0.0], 2
+    if payload is not None:
+        _payload(s, mech, bodies, payload)
     for motor in mech.actuated:
         if motor in stiff:
             a = s.add_actuator()

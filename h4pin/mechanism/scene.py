@@ -509,14 +509,36 @@ def draw_load(scene: Scene, load: Any, output: str, dq: np.ndarray, dy: np.ndarr
     return exaggeration
 
 
+def draw_equilibrium(scene: Scene, eq: Any, output: str, load: Any = None, exaggeration: float | None = None) -> float:
+    """The robot in a loaded equilibrium (:meth:`Mechanism.equilibrium
+    <h4pin.mechanism.Mechanism.equilibrium>`) as a red ghost, its motion from the rest state
+    exaggerated (default: the output moves about 30 mm, or a tenth of the robot's size if
+    smaller), and an arrow for ``load`` at ``output``. Returns the exaggeration."""
+    mech = scene.subject
+    moved = float(np.linalg.norm(eq.displacement(output)[:3]))
+    if exaggeration is None:
+        exaggeration = nice(min(GHOST_SIZE, 0.1 * extent(mech.model, eq.rest)) / max(moved, 1e-15))
+    dq = pin.difference(mech.model, eq.rest, eq.q)
+    scene.ghost(pin.integrate(mech.model, eq.rest, exaggeration * dq),
+                f"red ghost: loaded equilibrium (its weight{'' if load is None else ' and the load'}), exaggerated "
+                f"x{exaggeration:g} (true |d{output}| = {moved * 1e6:.3g} um{'' if eq.stable else ', unstable'})")
+    if load is not None:
+        d = mech.model.createData()
+        pin.framesForwardKinematics(mech.model, d, eq.rest)
+        scene.force(d.oMf[mech.model.getFrameId(output)].translation, wrench(load)[:3])
+    return exaggeration
+
+
 def show(mech: Any, q: Any = None, springs: Mapping[str, Any] | None = None, output: str | None = None,
          locked: Iterable[Any] = (), *, atlas: Any = None, load: Any = None, scale: float | None = None,
          size: float | None = None, exaggeration: float | None = None, vis: meshcat.Visualizer | None = None,
-         host: str = meshcat_server.LOCALHOST) -> Scene:
+         host: str = meshcat_server.LOCALHOST, gravity: bool = False, payload: Any = None) -> Scene:
     """Any closed-loop robot in a new meshcat server: its stick drawing at ``q`` (default the
     reference assembly), the compliance ellipsoid at ``output`` (``scale`` mm per um/N), the
     ellipsoid field of ``atlas`` (:func:`draw_field`, ``size``) and the deflected shape under
-    ``load`` (:func:`draw_load`, ``exaggeration``), from one compliance (:func:`joint_compliance`).
+    ``load`` (:func:`draw_load`, ``exaggeration``), from one compliance (:func:`joint_compliance`);
+    with ``gravity`` (and a ``payload`` ``Payload`` at the output), the loaded equilibrium under
+    the robot's weight and ``load`` instead (:func:`draw_equilibrium`).
     ``springs``, ``output`` and ``locked`` default to the atlas's (its attributes).
     ``html()``/``write_html(path)``: a self-contained page; ``close()`` stops the server.
 
@@ -533,14 +555,19 @@ def show(mech: Any, q: Any = None, springs: Mapping[str, Any] | None = None, out
         springs = json.loads(atlas.attrs["springs"]) if springs is None else springs
         output = atlas.attrs["output"] if output is None else output
         locked = tuple(locked) or tuple(json.loads(atlas.attrs.get("locked", "[]")))
-    if load is not None:
-        wrench(load)
+    if load is not None or gravity:
+        if load is not None:
+            wrench(load)
         if springs is None or output is None:
-            raise ParameterError("load: give the springs and the output frame (or an atlas that holds them)")
+            raise ParameterError("load, gravity: give the springs and the output frame (or an atlas that holds them)")
     q = mech.assemble() if q is None else mech.configuration(q)
+    eq = None
+    if gravity:
+        eq = mech.equilibrium(q, springs, None if load is None else {output: wrench(load)}, gravity=True,
+                              payload=None if payload is None else (output, payload), locked=locked)
     C = None
     if springs is not None and output is not None:
-        C = joint_compliance(mech, q, springs, output, locked) if load is not None else \
+        C = joint_compliance(mech, q, springs, output, locked) if load is not None and not gravity else \
             mech.compliance(q, springs, [output], locked)
     scene = Scene(mech, vis, host)
     try:
@@ -553,7 +580,9 @@ def show(mech: Any, q: Any = None, springs: Mapping[str, Any] | None = None, out
                              "mechanism/ellipsoid", output)
         if atlas is not None:
             draw_field(scene, atlas, size)
-        if load is not None:
+        if eq is not None:
+            draw_equilibrium(scene, eq, output, load, exaggeration)
+        elif load is not None:
             dq, dy = joint_deflection(mech, q, springs, output, load, locked, C)
             draw_load(scene, load, output, dq, dy, exaggeration)
     except BaseException:
@@ -563,5 +592,5 @@ def show(mech: Any, q: Any = None, springs: Mapping[str, Any] | None = None, out
 
 
 __all__ = ["ARROW_LENGTH", "ELLIPSOID_SIZE", "GHOST_SIZE", "MAX_ELLIPSOIDS", "Scene", "draw_ellipsoid", "draw_field",
-           "draw_load", "draw_sticks", "ellipsoid_axes", "extent", "field_points", "hex_color", "joint_compliance",
-           "joint_deflection", "nice", "screenshot", "show", "wrench"]
+           "draw_equilibrium", "draw_load", "draw_sticks", "ellipsoid_axes", "extent", "field_points", "hex_color",
+           "joint_compliance", "joint_deflection", "nice", "screenshot", "show", "wrench"]

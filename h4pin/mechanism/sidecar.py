@@ -12,6 +12,14 @@ Gepetto's ``example-parallel-robots`` publishes each robot as ``robot.urdf`` (a 
 * ``beams`` (optional, h4pin's own key): flexible links, ``{link: {E:, G:, d:}}`` for a round
   section or the six values ``E, G, A, Iy, Iz, J``, with ``to:`` and ``carry:`` where needed
   (:class:`h4pin.mechanism.Beam`);
+* ``springs`` (optional, h4pin's own key): the joints' springs ``{joint: stiffness}`` (N.m/rad,
+  N/m), as :attr:`Mechanism.springs <h4pin.mechanism.Mechanism.springs>` holds them (what a
+  calibration writes);
+* ``elastic`` (optional, h4pin's own key): the virtual elastic joints among the springs (a beam's,
+  a lateral hinge's): at 0 in a rigid assembly, as :attr:`Mechanism.beam_springs
+  <h4pin.mechanism.Mechanism.beam_springs>`;
+* ``gravity`` (optional, h4pin's own key): the gravity vector in the file's world axes (m/s², default
+  Pinocchio's 9.81 down z): a robot written in a tracker's frame;
 * ``joint_name`` / ``joint_type`` (optional): joints the loader replaces before it closes the
   loops, because a URDF has no ball or universal joint: ``SPHERICAL`` (a ball joint at the same
   place), ``UJOINT_ab`` (a universal joint: a hinge about axis a then one about axis b, each of X,
@@ -38,7 +46,7 @@ from h4pin.errors import MalformedURDFError, MechanismWarning
 #: The joint conversions the toolbox's loader accepts (``joint_type``).
 JOINT_TYPES = ("SPHERICAL", "FIXED") + tuple(f"UJOINT_{a}{b}" for a in "XYZ" for b in "XYZ" if a != b)
 #: The keys a sidecar may hold.
-KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type", "beams")
+KEYS = ("closed_loop", "type", "name_mot", "joint_name", "joint_type", "beams", "springs", "elastic", "gravity")
 #: A ``beams:`` entry's keys: a round section (``E``, ``G``, ``d``) or the six values; ``to``, ``carry``.
 BEAM_KEYS = ("E", "G", "d", "A", "Iy", "Iz", "J", "to", "carry")
 _HINGE = {"X": pin.JointModelRX, "Y": pin.JointModelRY, "Z": pin.JointModelRZ}
@@ -56,6 +64,9 @@ class Sidecar:
     motors: tuple[str, ...]
     joints: Mapping[str, str]
     beams: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    springs: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    elastic: tuple[str, ...] = ()
+    gravity: tuple[float, float, float] | None = None
 
 
 def _strings(path: str, key: str, value: Any) -> tuple[str, ...]:
@@ -112,7 +123,52 @@ def parse(content: Any, path: str = "sidecar") -> Sidecar:
     if len(set(names)) != len(names):
         raise MalformedURDFError(f"{path}: joint_name names a joint twice")
     return Sidecar(path, tuple(loops), tuple(types), motors, dict(zip(names, kinds_j, strict=True)),
-                   _beams(path, content.get("beams", {})))
+                   _beams(path, content.get("beams", {})), _springs(path, content.get("springs", {})),
+                   _elastic(path, content.get("elastic", []), content.get("springs", {})),
+                   _gravity(path, content.get("gravity")))
+
+
+def _gravity(path: str, value: Any) -> tuple[float, float, float] | None:
+    """The ``gravity:`` key: the gravity vector in the file's world axes (m/s^2), or None."""
+    import math
+
+    if value is None:
+        return None
+    try:
+        g = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        g = ()
+    if len(g) != 3 or not all(math.isfinite(v) for v in g) or math.hypot(*g) > 1e3 or isinstance(value, str):
+        raise MalformedURDFError(f"{path}: gravity must be three finite numbers (m/s^2), got {value!r}")
+    return g
+
+
+def _elastic(path: str, value: Any, springs: Any) -> tuple[str, ...]:
+    """The ``elastic:`` key: virtual elastic joints (a beam's, a lateral hinge's), each with a
+    spring, held at 0 in a rigid assembly."""
+    names = _strings(path, "elastic", value)
+    missing = [n for n in names if not isinstance(springs, Mapping) or n not in springs]
+    if missing:
+        raise MalformedURDFError(f"{path}: elastic: joint {missing[0]!r} has no entry in springs")
+    return names
+
+
+def _springs(path: str, value: Any) -> dict[str, float]:
+    """The ``springs:`` key (h4pin's own): ``{joint: stiffness}``, N.m/rad or N/m, each finite > 0."""
+    import math
+
+    if not isinstance(value, Mapping):
+        raise MalformedURDFError(f"{path}: springs must be a mapping {{joint: stiffness}}, got {value!r}")
+    out = {}
+    for joint, k in value.items():
+        try:
+            v = float(k)
+        except (TypeError, ValueError):
+            v = math.nan
+        if not isinstance(joint, str) or isinstance(k, bool) or not 0 < v < math.inf:
+            raise MalformedURDFError(f"{path}: springs: {joint!r} must map to a finite stiffness > 0, got {k!r}")
+        out[joint] = v
+    return out
 
 
 def _beams(path: str, value: Any) -> dict[str, Any]:

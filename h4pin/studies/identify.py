@@ -4,7 +4,9 @@
 Eq. 30 with the stated data does not reproduce Table II (:mod:`h4pin.studies.gap`). This module fits the
 quantities the paper does not give or may not know well, within physically plausible bounds
 (:data:`PARAMETERS`), to the measured table (or to the computed one), with
-:func:`scipy.optimize.least_squares` (``trf``, bounds), and reports what the data can tell:
+h4pin's one fitting engine (:mod:`h4pin.mechanism.fitting`: :func:`scipy.optimize.least_squares`,
+``trf``, bounds, several starts; the calibration of any mechanism uses it too), and reports what
+the data can tell:
 
 * residual per entry against the noise (``sigma``) estimated from the table's asymmetry
   (:func:`h4pin.studies.gap.noise_from_asymmetry`; for the computed table, its rounding: 1/sqrt(12));
@@ -28,11 +30,11 @@ import functools
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from h4pin.description.params import H4Params
 from h4pin.errors import ConvergenceError
 from h4pin.kinematics.closed_form import CENTRE_Q
+from h4pin.mechanism import fitting
 from h4pin.robot import load
 from h4pin.stiffness.api import Compliance, compliance
 from h4pin.studies import gap
@@ -211,14 +213,10 @@ def fit(target: np.ndarray = gap.MEASURED, names: tuple[str, ...] = MEASURED_FIT
     rng = np.random.default_rng(seed)
     guesses = [x0] + [lower + rng.uniform(0.05, 0.95, len(names)) * (upper - lower) for _ in range(starts - 1)]
     fn = _residual_fn(names, target, sigma, fixed, same_point)
-    best = None
-    for g in guesses:
-        sol = least_squares(fn, g, bounds=(lower, upper), x_scale=upper - lower, method="trf", diff_step=1e-6,
-                            xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=300)
-        if sol.status >= 0 and (best is None or sol.cost < best.cost):
-            best = sol
-    if best is None:
-        raise ConvergenceError(f"identification: every start failed ({sol.message})")
+    try:
+        best = fitting.solve(fn, guesses, lower=lower, upper=upper, scale=upper - lower, diff_step=1e-6, max_nfev=300)
+    except ConvergenceError as exc:
+        raise ConvergenceError(f"identification: {exc}") from None
     return _report(best.x, names, target, sigma, fixed, lower, upper, identifiable, same_point)
 
 
@@ -229,11 +227,7 @@ def _report(x: np.ndarray, names: tuple[str, ...], target: np.ndarray, sigma: fl
     h = 1e-6 * ranges
     jac = np.column_stack([(fn(x + hi * e) - fn(x - hi * e)) / (2 * hi) for hi, e in zip(h, np.eye(len(x)),
                                                                                           strict=True)])
-    scaled = jac * ranges  # d residual / d (x / range)
-    _, s, vt = np.linalg.svd(scaled, full_matrices=False)
-    if len(s) < len(names):
-        s = np.r_[s, np.zeros(len(names) - len(s))]
-        vt = np.vstack([vt, np.linalg.svd(scaled)[2][len(vt):]])
+    s, vt = fitting.combinations(jac, ranges)  # d residual / d (x / range)
     combos = [Combination(float(sk), dict(zip(names, map(float, v), strict=True)),
                           float(1 / sk) if sk > 0 else float("inf")) for sk, v in zip(s, vt, strict=True)]
     keep = np.array([c.std_scaled < identifiable for c in combos])
@@ -320,13 +314,9 @@ def _symmetric_fit(names: tuple[str, ...], data: np.ndarray, noise: np.ndarray, 
 
     rng = np.random.default_rng(seed)
     x0 = np.clip([PARAMETERS[n].default for n in names], lower, upper)
-    best = None
-    for g in [x0] + [lower + rng.uniform(0.05, 0.95, len(names)) * (upper - lower) for _ in range(starts - 1)]:
-        sol = least_squares(fn, g, bounds=(lower, upper), x_scale=upper - lower, method="trf", diff_step=1e-6,
-                            xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=300)
-        if best is None or sol.cost < best.cost:
-            best = sol
-    return best.x, 2.0 * float(best.cost)
+    guesses = [x0] + [lower + rng.uniform(0.05, 0.95, len(names)) * (upper - lower) for _ in range(starts - 1)]
+    best = fitting.solve(fn, guesses, lower=lower, upper=upper, scale=upper - lower, diff_step=1e-6, max_nfev=300)
+    return best.x, 2.0 * best.cost
 
 
 def select(candidates: dict[str, tuple[str, ...]] | None = None, target: np.ndarray = gap.MEASURED,
