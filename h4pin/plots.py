@@ -356,7 +356,7 @@ def tolerance(res: Any, path: str | Path) -> Path:
 
 
 def sag_map(ds: Any, path: str | Path) -> Path:
-    """The map of :func:`h4pin.studies.loaded.sag_map`: colour = |sag of D| (um), arrows = its
+    """The map of :func:`h4pin.studies.loaded.sag_map`: colour = ‖sag of D‖ (um), arrows = its
     horizontal part, the boundary of the computed poses in black."""
     from matplotlib.figure import Figure
 
