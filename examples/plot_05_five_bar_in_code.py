@@ -79,16 +79,16 @@ same = h4pin.Mechanism(model, [local], actuated=["motor_1", "motor_2"]).complian
 print("LOCAL vs LOCAL_WORLD_ALIGNED:", np.abs(same - C).max(), "m/N")
 
 # %%
-# The linkage and the tip's deflection under 50 N in every direction of the plane (to scale).
+# The linkage and the tip's deflection under 500 N in every direction of the plane (to scale).
 pin.forwardKinematics(model, data, q)
 joints = [data.oMi[j].translation[:2] for j in (motor_1, elbow_1, motor_2, elbow_2)]
 p = tip_position(q)
 t = np.linspace(0, 2 * np.pi, 80)
-deflection = C[:2, :2] @ (50.0 * np.array([np.cos(t), np.sin(t)]))
+deflection = C[:2, :2] @ (500.0 * np.array([np.cos(t), np.sin(t)]))
 fig, ax = plt.subplots(figsize=(5, 5))
 for a, b in ((0, 1), (2, 3)):
     ax.plot(*np.array([joints[a], joints[b], p]).T, "o-", color="0.3")
-ax.plot(p[0] + deflection[0], p[1] + deflection[1], color="tab:green", label="tip deflection under 50 N")
+ax.plot(p[0] + deflection[0], p[1] + deflection[1], color="tab:green", label="tip deflection under 500 N")
 ax.set_aspect("equal")
 ax.set_xlabel("x [m]")
 ax.set_ylabel("y [m]")
