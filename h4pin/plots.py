@@ -402,5 +402,36 @@ def compensated_cycle(res: Any, path: str | Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-__all__ = ["DISPLAY", "atlas_maps", "compensated_cycle", "cycle", "frequency_map", "frequency_pareto", "sag_map",
-           "sweep_pareto", "tolerance"]
+
+def calibration(rows: Sequence[Any], path: str | Path) -> Path:
+    """The markers' errors of a stage table (:func:`h4pin.mechanism.calibration.stages`): per
+    stage, mean and max on the fitted and held-out samples (mm); and the distribution of the
+    errors of the nominal model and of the last stage."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10.0, 4.0), layout="constrained")
+    a, b = fig.subplots(1, 2)
+    names = ["\n+ ".join(r.groups) if k == 0 else "+ " + r.groups[-1] for k, r in enumerate(rows)]
+    x = np.arange(len(rows))
+    for k, (label, style) in enumerate((("fit", "o-"), ("held out", "s--"))):
+        mean = np.array([(r.fit if k == 0 else r.held)[0] for r in rows]) * 1e3
+        top = np.array([(r.fit if k == 0 else r.held)[2] for r in rows]) * 1e3
+        a.plot(x, mean, style, color=f"C{k}", label=f"mean, {label}")
+        a.plot(x, top, style, color=f"C{k}", alpha=0.4, label=f"max, {label}")
+    a.set_xticks(x, names, fontsize=7)
+    a.set_yscale("log")
+    a.set_ylabel("marker error [mm]")
+    a.legend(fontsize=7)
+    for r, colour in ((rows[0], "0.6"), (rows[-1], "C2")):
+        e = np.linalg.norm(r.calibration.residuals, axis=-1).ravel() * 1e3
+        e = e[np.isfinite(e)]
+        b.hist(e, bins=40, color=colour, alpha=0.7, label=" + ".join(r.groups))
+    b.set_xlabel("marker error on the fitted samples [mm]")
+    b.set_ylabel("readings")
+    b.legend(fontsize=7)
+    fig.suptitle("calibration, stage by stage", fontsize=9)
+    return save_figure(fig, path, dpi=110)
+
+
+__all__ = ["DISPLAY", "atlas_maps", "calibration", "compensated_cycle", "cycle", "frequency_map", "frequency_pareto",
+           "sag_map", "sweep_pareto", "tolerance"]

@@ -32,13 +32,13 @@ import sys
 import typer
 import typer.main
 
-from h4pin.cli import atlas, cycle, export, modes, sweep, table2, tolerance, view, warmup
+from h4pin.cli import atlas, calibrate, cycle, export, modes, sweep, table2, tolerance, view, warmup
 from h4pin.cli.common import Stopped, app, check_arity
 from h4pin.errors import H4Error
 
 #: The commands, in the order docs/cli.md lists them: one module each.
 COMMANDS = (table2.table2, view.view, tolerance.tolerance, export.export, atlas.atlas, sweep.sweep, cycle.cycle,
-            modes.modes, warmup.warmup)
+            modes.modes, calibrate.calibrate, warmup.warmup)
 for _command in COMMANDS:  # --help lists each command with its whole first paragraph, not cut
     app.command(short_help=" ".join(inspect.cleandoc(_command.__doc__ or "").split("\n\n")[0].split()))(_command)
 #: How docs/cli.md is made (its first line says so).

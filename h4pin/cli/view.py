@@ -85,18 +85,7 @@ def view(
             signal.signal(sig, stop_on_signal)
     from h4pin import limits
 
-    check_finite("--pose", pose)
-    check_finite("--load", load)
-    if load is not None:
-        limits.check_range("--load", load, "load")
-    if scale is not None and not (math.isfinite(scale) and scale > 0):
-        fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
-    if scale is not None:
-        limits.check_range("--scale", scale, "scale")
-    if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
-        fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
-    if exaggeration is not None:
-        limits.check_range("--exaggeration", exaggeration, "exaggeration")
+    _check_numbers(pose, load, scale, exaggeration)
     if mode is not None and mode < 1:
         fail(f"--mode must be >= 1 (1: the first natural mode), got {mode}")
     check_payload(payload)
@@ -162,6 +151,24 @@ def view(
             signal.signal(sig, signal.SIG_IGN)
         scene.close()
 
+
+
+def _check_numbers(pose: Any, load: Any, scale: float | None, exaggeration: float | None) -> None:
+    """One line for a pose, load, scale or exaggeration that is not a finite, plausible number."""
+    from h4pin import limits
+
+    check_finite("--pose", pose)
+    check_finite("--load", load)
+    if load is not None:
+        limits.check_range("--load", load, "load")
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        fail(f"--scale must be a finite number > 0 (mm per um/N), got {scale:g}")
+    if scale is not None:
+        limits.check_range("--scale", scale, "scale")
+    if exaggeration is not None and not (math.isfinite(exaggeration) and exaggeration > 0):
+        fail(f"--exaggeration must be a finite number > 0, got {exaggeration:g}")
+    if exaggeration is not None:
+        limits.check_range("--exaggeration", exaggeration, "exaggeration")
 
 
 def _mechanism_scene(robot: Path, sidecar: Path | None, output: str | None, atlas_path: Path | None,

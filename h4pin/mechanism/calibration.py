@@ -32,10 +32,11 @@ the equilibrium's tangent stiffness (the sag's second-order change with the geom
 slows the convergence a little, never moves the solution).
 
 **Identifiability.** The SVD of the Jacobian in prior units names the combinations the data do not
-inform (a singular value below ``tol`` of the largest, or a standard deviation above half the
-prior's): they are held at the prior (the fit moves in the others only) and listed in
-:attr:`Calibration.unidentifiable`, never left to drift. The covariance is ``(Jᵀ J)⁻¹`` on the
-identified combinations (the noise estimated from the residuals unless given).
+inform (a singular value below :data:`IDENTIFIABLE_TOL` of the largest, or a standard deviation
+from the data alone above :data:`HELD_STD` prior sigmas): they are held at the prior (the fit moves
+in the others only) and listed in :attr:`Calibration.unidentifiable`, never left to drift. The
+covariance is ``(Jᵀ J + I)⁻¹`` in prior units on the identified combinations, the prior's on the
+held ones (the noise estimated from the residuals unless given).
 """
 
 from __future__ import annotations
@@ -62,8 +63,10 @@ SIGMA = {"base": (0.1, 0.1), "markers": 0.01, "offsets": (0.05, 0.005), "geometr
 LATERAL_FACTOR, LATERAL_STIFFNESS = 10.0, 1e4
 #: Central-difference step of the rigid parameters' partial derivatives (m, rad).
 STEP = 1e-7
-#: Relative singular value under which a combination is not identified.
-IDENTIFIABLE_TOL = 1e-6
+#: Relative singular value under which a combination is not identified; and the standard deviation
+#: (in prior sigmas) the data alone leave a combination above which it is held at the prior: the
+#: data tell it less than a hundredth of what the prior does.
+IDENTIFIABLE_TOL, HELD_STD = 1e-6, 10.0
 _AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 
@@ -563,7 +566,8 @@ class Calibration:
 
     Attributes:
         values, std: ``{name: value}`` (SI; a stiffness in N.m/rad or N/m) and its standard
-            deviation (NaN for a parameter held at the prior).
+            deviation, the prior's along the combinations the data do not inform (a parameter the
+            data identify has a std well under its prior sigma).
         residuals: (N, m, 3) predicted minus measured markers at the solution (m; NaN where a
             marker was not seen), on the fitted samples; held: the same on the held-out samples
             (``holdout``; their indices ``held_rows``), or None.
@@ -632,15 +636,16 @@ class Calibration:
 
 
 def _prior(params: list[Parameter], prior: Mapping[str, Any] | None) -> list[Parameter]:
+    """``params`` with the nominal values and sigmas of ``prior`` (names of parameters not fitted
+    are passed over: one prior serves every stage of a table)."""
     if prior is None:
         return params
     if not isinstance(prior, Mapping):
         raise ParameterError("prior: a mapping {parameter name: (nominal, sigma)}")
-    names = {p.name: p for p in params}
     out = []
     for name in prior:
-        if name not in names:
-            raise ParameterError(f"prior: {name!r} is not a calibrated parameter")
+        if not isinstance(name, str) or name.split("/", 1)[0] not in GROUPS:
+            raise ParameterError(f"prior: {name!r} is not a parameter of a group ({', '.join(GROUPS)}/...)")
     for p in params:
         if p.name in prior:
             try:
@@ -666,7 +671,7 @@ def _fit(model: Model, noise: float, loss: str, iterations: int, start: np.ndarr
     pred, states = model.predict(x0)
     jac0 = model.jacobian(x0, states)[seen] / noise
     s, vt = fitting.combinations(jac0, sig)
-    keep = fitting.split(s, IDENTIFIABLE_TOL, 0.5)
+    keep = fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
     v = vt[keep].T
     cache: dict[bytes, Any] = {}
 
@@ -778,15 +783,17 @@ def _result(model: Model, x: np.ndarray, noise: float, cost: float) -> Calibrati
     seen = np.isfinite(obs)
     jac = model.jacobian(x, states)[seen] / noise
     s, vt = fitting.combinations(jac, model.sigma)
-    keep = fitting.split(s, IDENTIFIABLE_TOL, 0.5)
-    cov = fitting.covariance(np.sqrt(s**2 + 1.0), vt, keep, model.sigma)  # the prior's row adds 1 to s^2
+    keep = fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
+    # The posterior in prior units: an identified combination's variance 1 / (s^2 + 1) (the data
+    # and the prior), a held one's the prior's, 1: each parameter's std includes what is not known.
+    var = np.where(keep, 1.0 / (s**2 + 1.0), 1.0)
+    cov = (vt.T * var) @ vt * model.sigma[:, None] * model.sigma[None, :]
     names = [p.name for p in model.params]
     values = {p.name: p.value(v) for p, v in zip(model.params, x, strict=True)}
     std = {}
     for k, p in enumerate(model.params):
-        lost = float(np.sum(vt[~keep, k] ** 2))
         sd = float(np.sqrt(cov[k, k]))
-        std[p.name] = (sd * values[p.name] if p.log else sd) if lost < 0.1 else float("nan")
+        std[p.name] = sd * values[p.name] if p.log else sd
     held = tuple(fitting.describe(vt[i], names) for i in np.flatnonzero(~keep))
     return Calibration(values, std, pred - obs, held, noise, model, x, cost)
 
@@ -837,21 +844,34 @@ def stages(mech: Any, measurements: Measurements, steps: Sequence[Any], *, holdo
     """A stage-by-stage table, as users publish it: the nominal model, then a calibration with each
     step's groups added to the ones before (``[["base", "markers"], ["offsets"], ["geometry"],
     ["springs"], ["lateral"]]``), each fitted on the same samples and scored on the held-out ones
-    (``holdout``: a fraction, drawn with ``seed``, or indices); ``options`` as :func:`calibrate`."""
+    (``holdout``: a fraction, drawn with ``seed``, or indices); a step may name targets
+    (``{"geometry": ["free1"]}``); ``options`` as :func:`calibrate`."""
     fit_rows, held_rows = _rows(measurements.n, holdout, seed)
     train = measurements.subset(fit_rows)
     test = measurements.subset(held_rows) if held_rows.size else None
-    out, groups = [], []
+    out: list[Stage] = []
+    spec: dict[str, Any] = {}
     for step in [None, *steps]:
         if step is not None:
-            groups += [step] if isinstance(step, str) else list(step)
-        if not groups:
-            cal = _nominal(mech, train, options)
-        else:
-            cal = calibrate(mech, train, list(dict.fromkeys(groups)), **options)
+            _add_step(spec, step)
+        cal = calibrate(mech, train, dict(spec), **options) if spec else _nominal(mech, train, options)
         held = errors(cal.predict(**_commands(test)) - test.observed()) if test is not None else (math.nan,) * 3
-        out.append(Stage(tuple(dict.fromkeys(groups)) or ("nominal",), errors(cal.residuals), held, cal))
+        out.append(Stage(tuple(spec) or ("nominal",), errors(cal.residuals), held, cal))
     return out
+
+
+def _add_step(spec: dict[str, Any], step: Any) -> None:
+    """A stage's groups added to ``spec``: a group name, a list of names or ``{group: targets}``;
+    a group named again with targets adds them (``None``, all targets, stays all)."""
+    items = step.items() if isinstance(step, Mapping) else \
+        [(step, None)] if isinstance(step, str) else [(g, None) for g in step]
+    for group, targets in items:
+        if group in spec and (spec[group] is None or targets is None):
+            spec[group] = None
+        elif group in spec:
+            spec[group] = list(dict.fromkeys([*spec[group], *targets]))
+        else:
+            spec[group] = None if targets is None else list(targets)
 
 
 def _commands(meas: Measurements) -> dict[str, Any]:
@@ -882,15 +902,17 @@ def _nominal(mech: Any, meas: Measurements, options: Mapping[str, Any]) -> Calib
 
 
 def stage_table(rows: Sequence[Stage]) -> str:
-    """The stage table as text, errors in mm."""
+    """The stage table as text, errors in mm: a row a stage, named by the groups it adds."""
     head = f"{'stage':<44}{'fit mean':>10}{'std':>8}{'max':>8}{'held mean':>11}{'std':>8}{'max':>8}"
     lines = [head, "-" * len(head)]
+    before: tuple[str, ...] = ("nominal",)
     for r in rows:
-        name = " + ".join(r.groups)
+        added = [g for g in r.groups if g not in before]
+        name = "+ " + " + ".join(added) if before != ("nominal",) and added else " + ".join(r.groups)
+        before = r.groups
         f, h = (np.array(v) * 1e3 for v in (r.fit, r.held))
         lines.append(f"{name[:43]:<44}{f[0]:>10.3f}{f[1]:>8.3f}{f[2]:>8.3f}{h[0]:>11.3f}{h[1]:>8.3f}{h[2]:>8.3f}")
     return "\n".join(lines)
-
 
 
 def cross_validate(mech: Any, measurements: Measurements, parameters: Any, folds: int = 5, *, seed: int = 0,

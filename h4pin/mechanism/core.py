@@ -164,36 +164,7 @@ class Mechanism(loaded.UnderLoad):
             parse; the sidecar is not such a mapping, a key holds the wrong kind, or it names a
             frame or motor the model lacks.
         """
-        from h4pin.mechanism import sidecar as sc
-
-        if not isinstance(free_flyer, bool):
-            raise ParameterError(f"free_flyer: True or False, got {free_flyer!r}")
-        urdf_path = Path(urdf_path)
-        side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
-        model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
-        if side.gravity is not None:
-            model.gravity = pin.Motion(np.array(side.gravity), np.zeros(3))
-        motors = side.motors if actuated is None else actuated
-        try:
-            names = joint_names(model, motors, f"{side.path}: name_mot")
-        except ParameterError as exc:
-            raise MalformedURDFError(str(exc)) from None
-        ranges = _urdf_ranges(model)
-        try:
-            springs = {n: k for n, k in side.springs.items() if n not in side.elastic}
-            mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model),
-                       ranges=ranges, springs=springs or None)
-            if side.elastic:
-                joint_names(model, side.elastic, "elastic")
-                object.__setattr__(mech, "beam_springs", {n: side.springs[n] for n in side.elastic})
-        except ParameterError as exc:
-            raise MalformedURDFError(f"{side.path}: {exc}") from None
-        if side.beams:
-            try:
-                return mech.with_beams(side.beams)
-            except ParameterError as exc:
-                raise MalformedURDFError(f"{side.path}: beams: {exc}") from None
-        return mech
+        return _from_urdf(cls, urdf_path, sidecar, actuated, free_flyer)
 
     @classmethod
     def from_elastic(cls, em: Any) -> Mechanism:
@@ -453,6 +424,40 @@ def _with_beams(mech: Mechanism, beams: Mapping[str, Any]) -> Mechanism:
     if len(set(parents)) != len(parents):
         raise ParameterError("beams: two links on one joint; one beam per joint")
     return inserted(mech, ins, f"{mech.name} with beams")
+
+
+def _from_urdf(cls: Any, urdf_path: Any, sidecar: Any, actuated: Any, free_flyer: bool) -> Mechanism:
+    """:meth:`Mechanism.from_urdf`."""
+    from h4pin.mechanism import sidecar as sc
+
+    if not isinstance(free_flyer, bool):
+        raise ParameterError(f"free_flyer: True or False, got {free_flyer!r}")
+    urdf_path = Path(urdf_path)
+    side = sc.read(urdf_path.with_suffix(".yaml") if sidecar is None else sidecar)
+    model, cms = sc.build(urdf_path, side, free_flyer=free_flyer)
+    if side.gravity is not None:
+        model.gravity = pin.Motion(np.array(side.gravity), np.zeros(3))
+    motors = side.motors if actuated is None else actuated
+    try:
+        names = joint_names(model, motors, f"{side.path}: name_mot")
+    except ParameterError as exc:
+        raise MalformedURDFError(str(exc)) from None
+    ranges = _urdf_ranges(model)
+    try:
+        springs = {n: k for n, k in side.springs.items() if n not in side.elastic}
+        mech = cls(model, cms, names, name=model.name or urdf_path.stem, reference=pin.neutral(model),
+                   ranges=ranges, springs=springs or None)
+        if side.elastic:
+            joint_names(model, side.elastic, "elastic")
+            object.__setattr__(mech, "beam_springs", {n: side.springs[n] for n in side.elastic})
+    except ParameterError as exc:
+        raise MalformedURDFError(f"{side.path}: {exc}") from None
+    if side.beams:
+        try:
+            return mech.with_beams(side.beams)
+        except ParameterError as exc:
+            raise MalformedURDFError(f"{side.path}: beams: {exc}") from None
+    return mech
 
 
 def inserted(mech: Mechanism, insertions: Sequence[Any], name: str, internal: bool = True) -> Mechanism:

@@ -3,12 +3,13 @@
 (the configuration of a tree, or the motor positions of a closed loop), where an external tracker
 saw markers on the robot, and the known loads; read from and written to CSV and NumPy files.
 
-The CSV layout (one row a sample, a header of column names): ``q.<joint>`` (one per coordinate of
-a configuration, ``q.<joint>.<k>`` for a multi-coordinate joint) or ``m.<motor>`` (motor
-positions), ``p.<frame>.x``, ``.y``, ``.z`` (a marker's measured position, m; empty or ``nan``
-where it was not seen), and optionally ``f.<frame>.fx``, ``fy``, ``fz``, ``tx``, ``ty``, ``tz``
-(a known load at the frame's origin, N and N.m, world axes). ``.npz``: the arrays
-``configurations`` or ``motors``, ``points/<frame>`` and ``loads/<frame>``.
+The CSV layout (one row a sample, a header of column names; lines starting with ``#`` are
+comments): ``q.<joint>`` (one per coordinate of a configuration, ``q.<joint>.<k>`` for a multi-
+coordinate joint) or ``m.<motor>`` (motor positions), ``p.<frame>.x``, ``.y``, ``.z`` (a marker's
+measured position, m; empty or ``nan`` where it was not seen), and optionally ``f.<frame>.fx``,
+``fy``, ``fz``, ``tx``, ``ty``, ``tz`` (a known load at the frame's origin, N and N.m, world
+axes). ``.npz``: the arrays ``configurations`` or ``motors``, ``points/<frame>`` and
+``loads/<frame>``.
 """
 
 from __future__ import annotations
@@ -147,7 +148,7 @@ class Measurements:
         w.writerow(cols)
         for row in zip(*cols.values(), strict=True):
             w.writerow(["" if np.isnan(v) else repr(float(v)) for v in row])
-        return write_text(path, buf.getvalue())
+        return write_text(path, buf.getvalue(), comment="#")
 
     @classmethod
     def from_csv(cls, path: str | Path) -> Measurements:
@@ -162,7 +163,7 @@ class Measurements:
             raise ParameterError(f"measurements: no file {path}")
         try:
             with open(path, newline="", encoding="utf-8") as fh:
-                rows = list(csv.reader(fh))
+                rows = [r for r in csv.reader(line for line in fh if not line.startswith("#"))]
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ParameterError(f"measurements: cannot read {path}: {exc}") from None
         if len(rows) < 2:

@@ -13,11 +13,10 @@ Gepetto's ``example-parallel-robots`` publishes each robot as ``robot.urdf`` (a 
   section or the six values ``E, G, A, Iy, Iz, J``, with ``to:`` and ``carry:`` where needed
   (:class:`h4pin.mechanism.Beam`);
 * ``springs`` (optional, h4pin's own key): the joints' springs ``{joint: stiffness}`` (N.m/rad,
-  N/m), as :attr:`Mechanism.springs <h4pin.mechanism.Mechanism.springs>` holds them (what a
+  N/m), as a Mechanism's ``springs`` holds them (what a
   calibration writes);
 * ``elastic`` (optional, h4pin's own key): the virtual elastic joints among the springs (a beam's,
-  a lateral hinge's): at 0 in a rigid assembly, as :attr:`Mechanism.beam_springs
-  <h4pin.mechanism.Mechanism.beam_springs>`;
+  a lateral hinge's): at 0 in a rigid assembly, as a Mechanism's ``beam_springs``;
 * ``gravity`` (optional, h4pin's own key): the gravity vector in the file's world axes (m/s², default
   Pinocchio's 9.81 down z): a robot written in a tracker's frame;
 * ``joint_name`` / ``joint_type`` (optional): joints the loader replaces before it closes the
