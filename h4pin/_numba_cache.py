@@ -5,7 +5,7 @@ Where: in a per-user folder keyed by the source, not by the install location:
 ``$XDG_CACHE_HOME/h4pin/numba`` (``~/.cache/h4pin/numba`` when ``XDG_CACHE_HOME`` is not set),
 or ``$NUMBA_CACHE_DIR/h4pin`` when ``NUMBA_CACHE_DIR`` is set, or, when neither can be written (a
 read-only home), ``h4pin-numba-cache-<uid>`` under the temporary directory. Inside it, each source
-file's functions live in ``numba-<numba version>/<module>/<stamp>``, where the stamp is a content
+file's functions live in ``numba-<version>-numpy-<major.minor>/<module>/<stamp>``, where the stamp is a content
 hash (below): reinstalling the same source (``pip install .`` twice, a second venv, a copy of the
 checkout) finds the kernels the first install compiled, instead of compiling them again for two
 minutes, and two different sources (a branch, a release) keep their own folders side by side.
@@ -135,11 +135,14 @@ def folder() -> Path | None:
 
 def cache_path(path: Path) -> Path:
     """Where the compiled functions of h4pin source file ``path`` are cached: under
-    :func:`folder`, by numba version, module and :func:`stamp` (not by the install location)."""
+    :func:`folder`, by numba's and numpy's versions, module and :func:`stamp` (not by the install
+    location)."""
     import numba
+    import numpy
 
     module = ".".join(path.relative_to(_ROOT).with_suffix("").parts)
-    return _folder / f"numba-{numba.__version__}" / module / stamp(path)[:20]
+    versions = f"numba-{numba.__version__}-numpy-{'.'.join(numpy.__version__.split('.')[:2])}"  # venvs apart
+    return _folder / versions / module / stamp(path)[:20]
 
 
 def _install_locator() -> bool:
