@@ -205,3 +205,18 @@ def test_the_generic_engine_reaches_nothing_of_the_h4():
         reached = sorted(d for d in seen if _covered(d, H4_SIDE) or d == "h4pin")
         assert reached == [], f"{module} reaches {reached}"
     assert "floor 1   mechanism/" in DOC  # the page draws it under the H4's floors
+
+
+def test_the_files_ci_reads_exist():
+    """Every file of this repository .ci/run names (the tests it runs, the modules it reads a
+    version bound from) exists, and each bound it reads with sed is found: a move that forgets CI
+    fails here, not on the fresh machine."""
+    text = (ROOT / ".ci" / "run").read_text()
+    paths = set(re.findall(r"\b((?:h4pin|tests|scripts|docs)/[\w/.-]+\.(?:py|toml|md))\b", text))
+    assert paths, "no path found in .ci/run"
+    missing = sorted(p for p in paths if not (ROOT / p).exists())
+    assert not missing, missing
+    for pattern, path in re.findall(r"sed -n '(s/[^']+)' (\S+)\)", text):
+        regex = pattern.split("/")[1].replace(r"\(", "(").replace(r"\)", ")")
+        found = re.search(regex, (ROOT / path).read_text(), re.MULTILINE)
+        assert found, (pattern, path)

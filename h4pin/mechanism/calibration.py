@@ -67,6 +67,9 @@ STEP = 1e-7
 #: (in prior sigmas) the data alone leave a combination above which it is held at the prior: the
 #: data tell it less than a hundredth of what the prior does.
 IDENTIFIABLE_TOL, HELD_STD = 1e-6, 10.0
+#: The fit's relative tolerance (SciPy's ftol, xtol, gtol): a cost a few hundred noise-scaled
+#: squares stops changing below a thousandth of one (a fraction of its statistical spread, ~1).
+TOL = 1e-6
 _AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 
@@ -403,17 +406,48 @@ class Model:
                                    frame.placement * pin.SE3(np.eye(3), rob.markers[marker]), pin.LOCAL_WORLD_ALIGNED)
         return np.reshape(jac, (6, model.nv))[:3]
 
-    def _partials(self, rob: Robot, x: np.ndarray, q: np.ndarray, eq: Any) -> dict[int, tuple[np.ndarray, ...]]:
-        """Each geometry and mass parameter's central differences at the fixed q: ``(dx (m, 3),
-        dc, dF)`` (a geometry parameter's through exp6's right Jacobian)."""
+    def _mass_partials(self, rob: Robot, q: np.ndarray, eq: Any) -> dict[int, tuple[np.ndarray, ...]]:
+        """The mass parameters' ``(0, 0, dF)`` at q: a body's weight at its centre c (joint frame)
+        loads the joint by ``-Jᵀ [m g; m (R c) x g]`` (J its LOCAL_WORLD_ALIGNED joint Jacobian),
+        linear in m and in m c: the markers and the closures do not move."""
+        model = rob.mech.model
+        m = len(self.meas.markers)
+        if eq is None:  # no load: a mass moves nothing
+            return {k: (np.zeros((m, 3)), None, None) for k, p in enumerate(self.params) if p.group == "masses"}
+        d = model.createData()
+        pin.computeJointJacobians(model, d, q)
+        g = np.array(model.gravity.linear)
+        zero_c = np.zeros(len(eq.mu))
+        out: dict[int, tuple[np.ndarray, ...]] = {}
+        jacobians: dict[int, np.ndarray] = {}
+        for k, p in enumerate(self.params):
+            if p.group != "masses":
+                continue
+            if not eq.problem.loads.gravity:
+                out[k] = (np.zeros((m, 3)), zero_c, np.zeros(model.nv))
+                continue
+            j = int(model.getJointId(p.target))
+            if j not in jacobians:
+                jacobians[j] = np.reshape(pin.getJointJacobian(model, d, j, pin.LOCAL_WORLD_ALIGNED), (6, model.nv))
+            jac, rot, inertia = jacobians[j], d.oMi[j].rotation, model.inertias[j]
+            if p.index == 0:
+                wrench = np.r_[g, np.cross(rot @ np.array(inertia.lever), g)]
+            else:
+                wrench = np.r_[np.zeros(3), float(inertia.mass) * np.cross(rot[:, p.index - 1], g)]
+            out[k] = (np.zeros((m, 3)), zero_c, -eq.load_factor * jac.T @ wrench)
+        return out
+
+    def _partials(self, rob: Robot, x: np.ndarray, q: np.ndarray, eq: Any,
+                  masses: bool = True) -> dict[int, tuple[np.ndarray, ...]]:
+        """Each geometry and mass parameter's partial derivatives at the fixed q: ``(dx (m, 3),
+        dc, dF)``; a geometry parameter's by central differences through exp6's right Jacobian, a
+        mass parameter's in closed form (:meth:`_mass_partials`; none with ``masses=False``)."""
         out: dict[int, tuple[np.ndarray, ...]] = {}
         done: dict[str, list[tuple[np.ndarray, ...]]] = {}
+        if masses and any(p.group == "masses" for p in self.params):
+            out.update(self._mass_partials(rob, q, eq))
         for k, p in enumerate(self.params):
-            if p.group == "masses":
-                plus = self._terms(rob, self._perturbed(rob, p, STEP), q, eq)
-                minus = self._terms(rob, self._perturbed(rob, p, -STEP), q, eq)
-                out[k] = tuple(None if a is None else (a - b) / (2 * STEP) for a, b in zip(plus, minus, strict=True))
-            elif p.group == "geometry":
+            if p.group == "geometry":
                 if p.target not in done:  # the six local directions of this joint, once
                     cols = []
                     for axis in range(6):
@@ -459,7 +493,7 @@ class Model:
             base_cols = np.array([tb.rotation @ np.c_[np.eye(3), -pin.skew(z)] @ jr_base for z in pre])  # (m, 3, 6)
             partials = self._partials(rob, x, q, eq)
             at_rest = partials if eq is None or not len(rob.mech.constraint_models) else \
-                self._partials(rob, x, rest, None)
+                self._partials(rob, x, rest, None, masses=False)
             _, a_rest = self._closures(rob, model, rest)
             pinv = np.linalg.pinv(a_rest[:, passive]) if a_rest.shape[0] and passive.size else None
             solve = _Implicit(eq) if eq is not None else None
@@ -661,19 +695,25 @@ def _prior(params: list[Parameter], prior: Mapping[str, Any] | None) -> list[Par
     return out
 
 
-def _fit(model: Model, noise: float, loss: str, iterations: int, start: np.ndarray | None = None
-         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def _fit(model: Model, noise: float, loss: str, iterations: int, start: np.ndarray | None = None,
+         nominal: tuple[Any, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float,
+                                                       tuple[Any, ...]]:
     """The fit of ``model`` in the identified subspace from ``start`` (default the prior's
-    nominal): ``(x, s, vt, keep, cost)``."""
+    nominal): ``(x, s, vt, keep, cost, nominal)``, ``nominal`` the prediction and Jacobian at the
+    prior's nominal (given back to a second fit, not computed again)."""
     obs = model.meas.observed()
     seen = np.isfinite(obs)
     x0, sig = model.x0, model.sigma
-    pred, states = model.predict(x0)
-    jac0 = model.jacobian(x0, states)[seen] / noise
+    if nominal is None:
+        pred, states = model.predict(x0)
+        nominal = (pred, states, model.jacobian(x0, states)[seen])
+    jac0 = nominal[2] / noise
     s, vt = fitting.combinations(jac0, sig)
     keep = fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
     v = vt[keep].T
-    cache: dict[bytes, Any] = {}
+    w0 = np.zeros(v.shape[1]) if start is None else np.linalg.lstsq(v, (start - x0) / sig, rcond=None)[0]
+    # the nominal's prediction and Jacobian serve the fit's first step from there
+    cache: dict[bytes, Any] = {np.zeros(v.shape[1]).tobytes(): nominal[:2]}
 
     def evaluate(w: np.ndarray) -> tuple[np.ndarray, list[Any]]:
         key = w.tobytes()
@@ -692,16 +732,14 @@ def _fit(model: Model, noise: float, loss: str, iterations: int, start: np.ndarr
 
     def jac(w: np.ndarray) -> np.ndarray:
         pred, states = evaluate(w)
-        if states is None:
+        if states is None or not np.any(w):
             return np.r_[jac0 * sig @ v, np.eye(len(w))]
         j = model.jacobian(x0 + sig * (v @ w), states)[seen] / noise
         return np.r_[j * sig @ v, np.eye(len(w))]
 
-    sol = fitting.solve(fun, [np.zeros(v.shape[1]) if start is None else np.linalg.lstsq(v, (start - x0) / sig,
-                                                                                             rcond=None)[0]],
-                        jac=jac, loss=loss, f_scale=3.0, max_nfev=iterations, tol=1e-9)
+    sol = fitting.solve(fun, [w0], jac=jac, loss=loss, f_scale=3.0, max_nfev=iterations, tol=TOL)
     x = x0 + sig * (v @ sol.x)
-    return x, s, vt, keep, sol.cost
+    return x, s, vt, keep, sol.cost, nominal
 
 
 def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", "markers"), *,
@@ -730,8 +768,6 @@ def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", 
         ParameterError: mismatched shapes, an unknown group, joint, marker or prior name, a bad
             option. ConvergenceError: the fit does not converge.
     """
-    from h4pin.mechanism.arguments import joint_names
-
     if not isinstance(measurements, Measurements):
         raise ParameterError(f"measurements: an h4pin.Measurements, got {type(measurements).__name__}")
     if holdout is not None:
@@ -740,6 +776,27 @@ def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", 
                         gravity=gravity, locked=locked, base=base, noise=noise, loss=loss, iterations=iterations)
         test = measurements.subset(held_rows)
         return dataclasses.replace(cal, held=cal.predict(**_commands(test)) - test.observed(), held_rows=held_rows)
+    model = _model(mech, measurements, parameters, springs, prior, gravity, locked, base)
+    if noise is not None and not (isinstance(noise, (int, float)) and 0 < noise < 1):
+        raise ParameterError(f"noise: a finite noise in m (0 < noise < 1), got {noise!r}")
+    sigma = 1e-4 if noise is None else float(noise)
+    x, s, vt, keep, cost, nominal = _fit(model, sigma, loss, iterations)
+    if noise is None:  # the noise of the residuals; the fit again from there if it weighs the prior otherwise
+        pred, _ = model.predict(x)
+        res = (pred - measurements.observed())[np.isfinite(measurements.observed())]
+        estimate = float(np.sqrt(np.sum(res**2) / max(res.size - int(keep.sum()), 1)))
+        if not 0.5 < estimate / sigma < 2.0:
+            x, s, vt, keep, cost, _ = _fit(model, estimate, loss, iterations, x, nominal)
+        sigma = estimate
+    return _result(model, x, sigma, cost)
+
+
+def _model(mech: Any, measurements: Measurements, parameters: Any, springs: Mapping[Any, Any] | None,
+           prior: Mapping[str, Any] | None, gravity: bool, locked: Iterable[Any], base: Any) -> Model:
+    """The forward :class:`Model` of a calibration: the nominal springs by name, the lateral
+    hinges inserted where asked, the parameters and their prior (:func:`calibrate`'s arguments)."""
+    from h4pin.mechanism.arguments import joint_names
+
     if springs is None:
         springs = dict(mech.springs)
     names = joint_names(mech.model, list(springs), "springs")
@@ -756,19 +813,39 @@ def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", 
     params = parameters_of(mech, spec, nominal, measurements.markers, commanded)
     params = _prior(params, prior)
     lock = tuple(joint_names(mech.model, locked, "locked"))
-    model = Model(mech, measurements, params, {**mech.beam_springs, **nominal}, gravity, lock, base)
-    if noise is not None and not (isinstance(noise, (int, float)) and 0 < noise < 1):
-        raise ParameterError(f"noise: a finite noise in m (0 < noise < 1), got {noise!r}")
-    sigma = 1e-4 if noise is None else float(noise)
-    x, s, vt, keep, cost = _fit(model, sigma, loss, iterations)
-    if noise is None:  # the noise of the residuals; the fit again from there if it weighs the prior otherwise
-        pred, _ = model.predict(x)
-        res = (pred - measurements.observed())[np.isfinite(measurements.observed())]
-        estimate = float(np.sqrt(np.sum(res**2) / max(res.size - int(keep.sum()), 1)))
-        if not 0.5 < estimate / sigma < 2.0:
-            x, s, vt, keep, cost = _fit(model, estimate, loss, iterations, x)
-        sigma = estimate
-    return _result(model, x, sigma, cost)
+    return Model(mech, measurements, params, {**mech.beam_springs, **nominal}, gravity, lock, base)
+
+
+def synthetic(mech: Any, parameters: Any, markers: Sequence[str], *, motors: Any = None, configurations: Any = None,
+              loads: Mapping[str, Any] | None = None, springs: Mapping[Any, Any] | None = None,
+              prior: Mapping[str, Any] | None = None, noise: float = 1e-4, gravity: bool = True,
+              locked: Iterable[Any] = (), base: Any = None, seed: int = 0) -> tuple[Measurements, dict[str, float]]:
+    """A synthetic tracker session, to plan an experiment before measuring (how many poses, which
+    loads, what the data will identify) and to test a calibration: a true robot drawn from the
+    prior (each parameter of ``parameters`` its nominal plus a normal draw of its sigma, ``seed``),
+    its markers predicted at the commanded ``motors`` (N, n_act) or ``configurations`` (N, nq) under
+    gravity and ``loads``, plus Gaussian ``noise`` (m, per axis).
+
+    Returns:
+        ``(measurements, truth)``: the :class:`Measurements` to fit and the true values by name
+        (:attr:`Calibration.values`' names, SI).
+    """
+    if motors is None and configurations is None:
+        raise ParameterError("synthetic: give motors= (a closed loop) or configurations= (a tree)")
+    if not (isinstance(noise, (int, float)) and 0 <= noise < 1):
+        raise ParameterError(f"noise: a noise in m (0 <= noise < 1), got {noise!r}")
+    n = len(np.asarray(motors if motors is not None else configurations))
+    blank = Measurements(motors=motors, configurations=configurations, loads=loads,
+                         points={f: np.zeros((n, 3)) for f in markers})
+    spec = {g: None for g in parameters} if not isinstance(parameters, Mapping) else dict(parameters)
+    model = _model(mech, blank, spec, springs, prior, gravity, locked, base)
+    rng = np.random.default_rng(seed)
+    truth = model.x0 + model.sigma * rng.normal(size=len(model.params))
+    points, _ = model.predict(truth)
+    points = points + rng.normal(0.0, noise, points.shape)
+    meas = Measurements(motors=motors, configurations=configurations, loads=loads,
+                        points={f: points[:, i] for i, f in enumerate(markers)})
+    return meas, {p.name: p.value(v) for p, v in zip(model.params, truth, strict=True)}
 
 
 def parameters_of(mech: Any, spec: Mapping[str, Any], springs: Mapping[str, float], markers: Sequence[str],
@@ -796,7 +873,6 @@ def _result(model: Model, x: np.ndarray, noise: float, cost: float) -> Calibrati
         std[p.name] = sd * values[p.name] if p.log else sd
     held = tuple(fitting.describe(vt[i], names) for i in np.flatnonzero(~keep))
     return Calibration(values, std, pred - obs, held, noise, model, x, cost)
-
 
 
 def _rows(n: int, holdout: Any, seed: int) -> tuple[np.ndarray, np.ndarray]:
