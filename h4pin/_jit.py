@@ -33,6 +33,7 @@ import types
 from collections.abc import Callable
 from typing import Any
 
+from h4pin import _numba_cache
 from h4pin.files import alive
 
 MODES = ("background", "inline", "off")
@@ -248,7 +249,8 @@ def lock_path() -> str:
     """One lock per cache location and user: two processes never compile the same cache at once."""
     import numba
 
-    where = os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR or os.path.dirname(__file__)
+    where = str(_numba_cache.folder() or os.environ.get("NUMBA_CACHE_DIR") or numba.config.CACHE_DIR
+                or os.path.dirname(__file__))
     tag = hashlib.sha1(os.path.abspath(where).encode()).hexdigest()[:12]
     uid = os.getuid() if hasattr(os, "getuid") else 0
     return os.path.join(tempfile.gettempdir(), f"h4pin-warmup-{uid}-{tag}.lock")

@@ -1,18 +1,24 @@
 # SPDX-License-Identifier: Apache-2.0
 """Where numba caches h4pin's compiled functions, and when a cached one is stale.
 
-Where: beside the code when that folder is writable (the usual case: a venv or a checkout), else
-in a per-user folder under the temporary directory (a read-only system or container install,
-where numba would otherwise refuse to import the package: "cannot cache function ...: no locator
-available"). ``NUMBA_CACHE_DIR``, when set, always wins.
+Where: in a per-user folder keyed by the source, not by the install location:
+``$XDG_CACHE_HOME/h4pin/numba`` (``~/.cache/h4pin/numba`` when ``XDG_CACHE_HOME`` is not set),
+or ``$NUMBA_CACHE_DIR/h4pin`` when ``NUMBA_CACHE_DIR`` is set, or, when neither can be written (a
+read-only home), ``h4pin-numba-cache-<uid>`` under the temporary directory. Inside it, each source
+file's functions live in ``numba-<version>-numpy-<major.minor>/<module>/<stamp>``, where the stamp is a content
+hash (below): reinstalling the same source (``pip install .`` twice, a second venv, a copy of the
+checkout) finds the kernels the first install compiled, instead of compiling them again for two
+minutes, and two different sources (a branch, a release) keep their own folders side by side.
+numba's own locators put the cache beside the code (thrown away with it by a reinstall) and key
+it by the file's absolute path. The folder may be deleted at any time: h4pin compiles again.
 
-When: numba stamps a cached function with its own source file alone, but h4pin's compiled
-pipeline freezes constants of other modules (the packed layouts of ``stiffness/packed.py``, the
-element codes of ``description/elements.py``, ``SINGULAR_COND`` of ``verdicts.py``): a checkout
-that changed one of them but not ``pipeline.py`` would run the old code from the cache, silently.
-:class:`_Locator` stamps every h4pin function with its file and every h4pin module that file
-imports, following imports through the modules that define compiled
-functions (:func:`sources`).
+When: numba stamps a cached function with its own source file alone (its modification time and
+size up to numba 0.67, its content since 0.68), but h4pin's compiled pipeline freezes constants of
+other modules (the packed layouts of ``stiffness/packed.py``, the element codes of
+``description/elements.py``, ``SINGULAR_COND`` of ``verdicts.py``): a checkout that changed one
+of them but not ``pipeline.py`` would run the old code from the cache, silently. :class:`_Locator`
+stamps every h4pin function with the content of its file and of every h4pin module that file
+imports, following imports through the modules that define compiled functions (:func:`sources`).
 
 :func:`configure` is called once, by ``h4pin/__init__.py``, before any compiled function is
 defined."""
@@ -85,7 +91,7 @@ def sources(path: Path) -> tuple[Path, ...]:
 
 
 def stamp(path: Path) -> str:
-    """A content hash of :func:`sources` of ``path`` (what :class:`_Locator` adds to numba's)."""
+    """A content hash of :func:`sources` of ``path`` (the source stamp of :class:`_Locator`, and its folder)."""
     files = sources(path)
     return _hash(tuple((f, f.stat().st_mtime_ns, f.stat().st_size) for f in files), _ROOT)
 
@@ -97,6 +103,46 @@ def _hash(files: tuple[tuple[Path, int, int], ...], root: Path) -> str:
     for source, _, _ in files:
         digest.update(str(source.relative_to(root)).encode() + b"\0" + source.read_bytes() + b"\0")
     return digest.hexdigest()
+
+
+_folder: Path | None = None
+
+
+def _usable(folder: Path) -> bool:
+    """Whether ``folder`` exists or can be made, and takes a file."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError:
+        return False
+    return True
+
+
+def candidates() -> list[Path]:
+    """The folders h4pin's compiled code may go to, first choice first (see the module's text)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return [Path(os.environ["NUMBA_CACHE_DIR"]) / "h4pin"]
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    user = Path(xdg) if os.path.isabs(xdg) else Path(os.path.expanduser("~")) / ".cache"
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    return [user / "h4pin" / "numba", Path(tempfile.gettempdir()) / f"h4pin-numba-cache-{uid}"]
+
+
+def folder() -> Path | None:
+    """The folder h4pin's compiled code is cached in (None until :func:`configure` found one)."""
+    return _folder
+
+
+def cache_path(path: Path) -> Path:
+    """Where the compiled functions of h4pin source file ``path`` are cached: under
+    :func:`folder`, by numba's and numpy's versions, module and :func:`stamp` (not by the install
+    location)."""
+    import numba
+    import numpy
+
+    module = ".".join(path.relative_to(_ROOT).with_suffix("").parts)
+    versions = f"numba-{numba.__version__}-numpy-{'.'.join(numpy.__version__.split('.')[:2])}"  # venvs apart
+    return _folder / versions / module / stamp(path)[:20]
 
 
 def _install_locator() -> bool:
@@ -114,46 +160,51 @@ def _install_locator() -> bool:
         return True
 
     class _Locator(base):
-        """numba's own locator for an h4pin file, with :func:`stamp` added to its source stamp."""
+        """An h4pin file's functions cached under :func:`cache_path`, stamped by content (:func:`stamp`)."""
 
         _h4pin = True
 
-        def __init__(self, inner: object, path: Path):
-            self._inner = inner
+        def __init__(self, path: Path, lineno: int):
             self._path = path
-
-        def ensure_cache_path(self) -> None:
-            self._inner.ensure_cache_path()
+            self._lineno = lineno
+            self._cache_path = str(cache_path(path))
 
         def get_cache_path(self) -> str:
-            return self._inner.get_cache_path()
+            return self._cache_path
 
         def get_source_stamp(self) -> object:
-            return (self._inner.get_source_stamp(), stamp(self._path))
+            return stamp(self._path)
 
         def get_disambiguator(self) -> str:
-            return self._inner.get_disambiguator()
+            return str(self._lineno)
 
         @classmethod
         def from_function(cls, py_func: object, py_file: str) -> object:
             path = Path(py_file).resolve()
-            if _ROOT not in path.parents:
+            if _folder is None or _ROOT not in path.parents or not path.is_file():
                 return None
-            for other in impl._locator_classes:
-                if other is not cls:
-                    inner = other.from_function(py_func, py_file)
-                    if inner is not None:
-                        return cls(inner, path)
-            return None
+            try:
+                self = cls(path, py_func.__code__.co_firstlineno)
+                self.ensure_cache_path()
+            except OSError:  # numba's own locators then
+                return None
+            return self
 
     impl._locator_classes.insert(0, _Locator)
     return True
 
 
 def configure() -> str | None:
-    """Install the stamping locator, and redirect numba's cache if h4pin's own folders cannot
-    hold it; returns the folder used instead, or None when nothing had to change."""
-    _install_locator()
+    """Choose the cache folder (:func:`candidates`: the first that can be written) and install
+    the locator that puts h4pin's compiled code there; returns the folder. With a numba whose
+    caching internals differ (no locator), numba's own places are used, moved to a per-user
+    temporary folder when h4pin's own folders cannot be written; returns that folder then, or
+    None when nothing had to change."""
+    global _folder
+    _folder = next((f for f in candidates() if _usable(f)), None)
+    if _folder is not None and _install_locator():
+        return str(_folder)
+    _folder = None
     if os.environ.get("NUMBA_CACHE_DIR"):
         return None
     root = _ROOT

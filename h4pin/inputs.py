@@ -52,6 +52,12 @@ def describe(value: Any) -> str:
     return f"{type(value).__name__} {text}"
 
 
+def is_mechanism(value: Any) -> bool:
+    """Whether ``value`` is an :class:`h4pin.mechanism.Mechanism` (by its class, without importing
+    the generic engine: the H4's doors name its own method when one is passed to them)."""
+    return any(c.__name__ == "Mechanism" and c.__module__.startswith("h4pin.mechanism") for c in type(value).__mro__)
+
+
 def check_instance(value: Any, types: type | tuple[type, ...], name: str, what: str,
                    error: type[Exception] = ParameterError) -> Any:
     """``value`` if it is an instance of ``types``; else ``error`` "``name`` must be ``what``, got ..."."""

@@ -24,41 +24,41 @@ Plausible ranges (issue 30, "absurd values pass silently"): :data:`RANGES` below
 its range is a :class:`ImplausibleValueError` naming the value and the range; a result that
 comes out non-finite from values inside them is a :class:`NonFiniteResultWarning`.
 
-=================  ===================  ==================================================
-name               range                why
-=================  ===================  ==================================================
-load               abs(F) <= 1e6 N      a force component at D (100 t): far past any H4
-torque             abs(T) <= 1e5 N.m    a torque component at D
-payload            0 to 1e3 kg          a point mass at D (the robot's plate is ~1 kg)
-exaggeration       0 < e <= 1e6         factor on a drawn deflection (um to m)
-scale              1e-9 to 1e9          ellipsoid scale of the viewer, mm per um/N
-cycle time         1e-3 to 1e6 s        one pick-and-place cycle (the paper's is 0.5 s)
-stroke             0 to 10 m            a cycle's stroke length or height (the paper's: 305
-                                        mm across, 25 mm up); its centre within 10 m of the base
-tool offset        abs(o) <= 10 m       a tool point from D (the elastic cycle's ``tool``)
-damping            0 to 1 s             the elastic cycle's stiffness-proportional damping
-                                        (1e-4 s: 1 % at 32.7 Hz; 1 s damps any mode to a crawl)
-stiffness          1e-6 to 1e25         kc (N.m/rad), E, G, Eb (Pa); a near-rigid stand-in
-                                        (1e9 x steel, as the identification's limits use) passes
-second moment      1e-24 to 1e3 m^4     I, I0 of the forearm section (same: a stand-in passes)
-section            1e-12 to 1 m^2       Sb of a bar
-stressed fraction  1e-6 to 1            forearm_stressed_fraction
-com offset         abs(c) <= 10 m       a payload's centre of mass from D (the robot spans ~1 m)
-payload inertia    0 to 1e3 kg.m^2      a payload's principal moments
-element m/N        0, or 1e-15 to 1e-2  a joint's or mount's compliance (0: off); 10 mm/N is
-                                        a rubber mount, 1e-15 a near-rigid stand-in
-element rad/(N.m)  0, or 1e-15 to 1     a shaft's or mount's rotational compliance (0: off)
-element N.m^2      1e-6 to 1e12, or inf a link's EI or GJ (inf: rigid, off); 1e12 is a steel
-                                        beam a metre deep, 1e-6 a strand of hair
-robot length       abs(x) <= 1e3 m      a position in a robot file (a URDF origin, an MJCF
-                                        pos or anchor): a kilometre is past any robot, and
-                                        1e308 overflows every product with it
-motor angle        abs(a) <= 20 pi rad  a revolute motor's position on a grid or in an
-                                        assembly: ten turns either way
-motor travel       abs(s) <= 10 m       a prismatic motor's position
-timestep           1e-9 to 0.1 s        a MuJoCo time step (the elastic export's default is
-                                        5e-5 s, MuJoCo's 2e-3 s)
-=================  ===================  ==================================================
+=================  ======================  ==================================================
+name               range                   why
+=================  ======================  ==================================================
+load               abs(F) <= 1e6 N         a force component at D (100 t): far past any H4
+torque             abs(T) <= 1e5 N.m       a torque component at D
+payload            0 to 1e3 kg             a point mass at D (the robot's plate is ~1 kg)
+exaggeration       0 < e <= 1e6            factor on a drawn deflection (um to m)
+scale              1e-9 to 1e9             ellipsoid scale of the viewer, mm per um/N
+cycle time         1e-3 to 1e6 s           one pick-and-place cycle (the paper's is 0.5 s)
+stroke             0 to 10 m               a cycle's stroke length or height (the paper's: 305
+                                           mm across, 25 mm up); its centre within 10 m of the base
+tool offset        abs(o) <= 10 m          a tool point from D (the elastic cycle's ``tool``)
+damping            0 to 1 s                the elastic cycle's stiffness-proportional damping
+                                           (1e-4 s: 1 % at 32.7 Hz; 1 s damps any mode to a crawl)
+stiffness          1e-6 to 1e25            kc (N.m/rad), E, G, Eb (Pa); a near-rigid stand-in
+                                           (1e9 x steel, as the identification's limits use) passes
+second moment      1e-24 to 1e3 m^4        I, I0 of the forearm section (same: a stand-in passes)
+section            1e-12 to 1 m^2          Sb of a bar
+stressed fraction  1e-6 to 1               forearm_stressed_fraction
+com offset         abs(c) <= 10 m          a payload's centre of mass from D (the robot spans ~1 m)
+payload inertia    0 to 1e3 kg.m^2         a payload's principal moments
+element m/N        0, or 1e-15 to 1e-2     a joint's or mount's compliance (0: off); 10 mm/N is
+                                           a rubber mount, 1e-15 a near-rigid stand-in
+element rad/(N.m)  0, or 1e-15 to 1        a shaft's or mount's rotational compliance (0: off)
+element N.m^2      1e-6 to 1e12, or inf    a link's EI or GJ (inf: rigid, off); 1e12 is a steel
+                                           beam a metre deep, 1e-6 a strand of hair
+robot length       abs(x) <= 1e3 m         a position in a robot file (a URDF origin, an MJCF
+                                           pos or anchor): a kilometre is past any robot, and
+                                           1e308 overflows every product with it
+motor angle        abs(a) <= 20 pi rad     a revolute motor's position on a grid or in an
+                                           assembly: ten turns either way
+motor travel       abs(s) <= 10 m          a prismatic motor's position
+timestep           1e-9 to 0.1 s           a MuJoCo time step (the elastic export's default is
+                                           5e-5 s, MuJoCo's 2e-3 s)
+=================  ======================  ==================================================
 
 :data:`BEAM_RANGES` holds a flexible link's (:class:`h4pin.mechanism.Beam`) section and material,
 SI: ``E`` and ``G`` 1e-6 to 1e25 Pa (as the spring data's E and G: a near-rigid stand-in passes),

@@ -259,7 +259,7 @@ def sweep_pareto(res: dict[str, np.ndarray], path: str | Path) -> Path:
 
 def cycle(result: Any, path: str | Path, others: Sequence[Any] = ()) -> Path:
     """Trajectory, load, deflection and actuator torques along the cycle, written atomically as
-    PNG. ``others``: more results (another payload) whose |dD| is drawn beside."""
+    PNG. ``others``: more results (another payload) whose ‖dD‖ is drawn beside."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -356,7 +356,7 @@ def tolerance(res: Any, path: str | Path) -> Path:
 
 
 def sag_map(ds: Any, path: str | Path) -> Path:
-    """The map of :func:`h4pin.studies.loaded.sag_map`: colour = |sag of D| (um), arrows = its
+    """The map of :func:`h4pin.studies.loaded.sag_map`: colour = ‖sag of D‖ (um), arrows = its
     horizontal part, the boundary of the computed poses in black."""
     from matplotlib.figure import Figure
 

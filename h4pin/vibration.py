@@ -15,7 +15,7 @@ from h4pin import limits, verdicts
 from h4pin.elastic.h4 import ElasticH4, elastic_model
 from h4pin.elastic.modal import modes as pinocchio_modes
 from h4pin.errors import ParameterError
-from h4pin.inputs import check_choice, check_flag, describe, real_array
+from h4pin.inputs import check_choice, check_flag, describe, is_mechanism, real_array
 from h4pin.kinematics.closed_form import as_poses
 from h4pin.mechanism.engine import Modes
 from h4pin.mechanism.payload import Payload
@@ -30,6 +30,10 @@ def _robot(robot: Any):
         return robot.robot
     if isinstance(robot, H4):
         return robot
+    if is_mechanism(robot):
+        raise ParameterError("h4pin.modes computes the H4's natural modes and takes an h4pin.H4 or an "
+                             "h4pin.ElasticH4, got a Mechanism: for any closed-loop robot call its own method, "
+                             "Mechanism.modes(q, springs, locked) (docs/mechanisms.md)")
     raise ParameterError(f"robot must be an h4pin.H4 or an h4pin.ElasticH4, got {describe(robot)}")
 
 

@@ -200,20 +200,25 @@ SLOW_IDS = frozenset({
     'tests/test_pipeline.py::test_bar_interpenetration_status',
     'tests/test_pipeline.py::test_compiled_code_is_cached',
     'tests/test_readme.py::test_printed_samples_match_the_commands[README.md:* .venv/bin/h4pin table2]',
-    'tests/test_readme.py::test_python_blocks_run_as_written',
-    ('tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin atlas --x -0.2 0.2 '
+    'tests/test_readme.py::test_python_blocks_run_as_written[docs/motion.md]',
+    'tests/test_readme.py::test_python_blocks_run_as_written[docs/tour.md]',
+    'tests/test_readme.py::test_python_blocks_run_as_written[docs/viewer.md]',
+    ('tests/test_readme.py::test_shell_lines_run[docs/studies.md:* .venv/bin/h4pin atlas --x -0.2 0.2 '
      '21 --y -0.2 0.2 21 --out atlas.nc --quiet]'),
-    ('tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin cycle --time 0.5 --'
+    ('tests/test_readme.py::test_shell_lines_run[docs/motion.md:* .venv/bin/h4pin cycle --time 0.5 --'
      'payload 0 --payload 0.5]'),
-    'tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin modes --payload 0.5]',
-    ('tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin sweep --designs 16 '
+    'tests/test_readme.py::test_shell_lines_run[docs/motion.md:* .venv/bin/h4pin modes --payload 0.5]',
+    ('tests/test_readme.py::test_shell_lines_run[docs/studies.md:* .venv/bin/h4pin sweep --designs 16 '
      '--chunk 8 --out sweep.zarr --quiet]'),
-    'tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin tolerance --robots 200 --no-sensitivity]',
-    ('tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin view --load 0 0 -10'
+    ('tests/test_readme.py::test_shell_lines_run[docs/studies.md:* .venv/bin/h4pin tolerance --robots 200 '
+     '--no-sensitivity]'),
+    ('tests/test_readme.py::test_shell_lines_run[docs/viewer.md:* .venv/bin/h4pin view --load 0 0 -10'
      ' --field --out h4.html]'),
-    'tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin view --mode 1 --out mode1.html]',
-    'tests/test_readme.py::test_shell_lines_run[README.md:* .venv/bin/h4pin view --variant symmetric]',
+    'tests/test_readme.py::test_shell_lines_run[docs/motion.md:* .venv/bin/h4pin view --mode 1 --out mode1.html]',
+    'tests/test_readme.py::test_shell_lines_run[docs/viewer.md:* .venv/bin/h4pin view --variant symmetric]',
     ('tests/test_readme.py::test_shell_lines_run[README.md:* python3 -m venv .venv && .venv/bin/'
+     'pip install . && .venv/bin/h4pin table2]'),
+    ('tests/test_readme.py::test_shell_lines_run[docs/first_use.md:* python3 -m venv .venv && .venv/bin/'
      'pip install . && .venv/bin/h4pin table2]'),
     'tests/test_robot.py::test_a_robot_goes_to_a_process_pool',
     'tests/test_sweep.py::test_cli_sweep',
@@ -241,5 +246,5 @@ SLOW_IDS = frozenset({
 @pytest.hookimpl(tryfirst=True)  # before the mark plugin deselects by -m
 def pytest_collection_modifyitems(config, items):
     for item in items:
-        if re.sub(r"README\.md:\d+ ", "README.md:* ", item.nodeid) in SLOW_IDS:  # README lines move
+        if re.sub(r"(README\.md|docs/\w+\.md):\d+ ", r"\1:* ", item.nodeid) in SLOW_IDS:  # page lines move
             item.add_marker(pytest.mark.slow)

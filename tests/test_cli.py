@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import importlib.util
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -48,6 +49,22 @@ def test_table2_prints_the_computed_block(proto, centre):
     printed = np.array([[float(v) for v in lines[start + 1 + a].split()[-3:]] for a in range(3)])
     np.testing.assert_allclose(printed, compliance(proto, centre).translational * 1e6, atol=0.051)
     assert "paper, measured" in out.stdout and "%" in out.stdout
+
+
+def test_table2_gap_rows_line_up_with_the_tables(proto):
+    """Every cell of the gap block ends in the column its header and the tables above end in,
+    relative gaps and the absolute ones (where the paper's entry is 0, in um/N) alike."""
+    from h4pin.studies.table2 import report
+
+    lines = report(proto).splitlines()
+    head = lines.index(next(line for line in lines if line.startswith("gap to paper computed")))
+    ends = [m.end() for m in re.finditer(r"F[xyz]", lines[head])]
+    table = lines[next(n for n, line in enumerate(lines) if line.startswith("h4pin")) + 1]
+    assert [m.end() for m in re.finditer(r"-?\d+\.\d", table)] == ends
+    for row in lines[head + 1:head + 4]:
+        cells = list(re.finditer(r"[+-]\d+(\.\d)?%?", row))
+        assert [m.end() for m in cells] == ends, row
+        assert all(m.group().endswith("%") or m.group() == "+0.0" for m in cells), row  # 0 in the paper: ours is 0
 
 
 @pytest.mark.parametrize(
@@ -195,7 +212,7 @@ def test_a_user_file_is_kept_unless_overwrite(command, tmp_path):
     assert target.read_bytes() == user and [p.name for p in tmp_path.iterdir()] == [name]
 
     if command in EXTRAS and importlib.util.find_spec(EXTRAS[command]) is None:
-        pytest.skip(f"writing it needs the {EXTRAS[command]} extra")
+        pytest.skip(f"needs the {EXTRAS[command]} package to write it (not installed)")
     first = run_cli(*args, option, str(target), "--overwrite")
     assert first.returncode == 0, first.stderr
     assert target.read_bytes() != user and f"wrote {target}" in first.stdout

@@ -20,7 +20,7 @@ from h4pin.mechanism import Mechanism
 
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
-    pytest.skip("Pinocchio < 4 reads no closures from MJCF", allow_module_level=True)
+    pytest.skip(f"needs Pinocchio >= 4 (closures read from MJCF), this is {pin.__version__}", allow_module_level=True)
 from kkt import closure_rows  # noqa: E402
 from test_corpus import _assembled_in_range  # noqa: E402
 

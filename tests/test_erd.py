@@ -299,7 +299,7 @@ def test_robot_descriptions_mujoco_loader(variant):
     from h4pin.descriptions import MODULES, paths, register_robot_descriptions
 
     if not Path(paths(variant).MJCF_PATH).is_file():
-        pytest.skip(f"{paths(variant).MJCF_PATH} is not there yet")
+        pytest.skip(f"needs {paths(variant).MJCF_PATH} (scripts/generate_urdf.py writes it with MuJoCo installed)")
     register_robot_descriptions()
     from robot_descriptions.loaders.mujoco import load_robot_description as load_mujoco
 

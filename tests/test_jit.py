@@ -188,7 +188,7 @@ def test_cache_stamp_covers_the_modules_compiled_code_depends_on(tmp_path, monke
     names = {p.relative_to(src).as_posix() for p in _numba_cache.sources(src / "stiffness" / "pipeline.py")}
     assert {"stiffness/packed.py", "verdicts.py", "description/elements.py", "stiffness/pipeline.py"} <= names
     for f in (pipeline.run, pipeline.one):
-        assert f._cache._cache_file._source_stamp[1] == _numba_cache.stamp(src / "stiffness" / "pipeline.py")
+        assert f._cache._cache_file._source_stamp == _numba_cache.stamp(src / "stiffness" / "pipeline.py")
 
     copy = tmp_path / "h4pin"
     shutil.copytree(src, copy, ignore=shutil.ignore_patterns("__pycache__"))
@@ -298,3 +298,53 @@ def test_link_as_compiled_hooks_numba_once():
     assert _jit.link_as_compiled(plain) is plain  # a plain function (NUMBA_DISABLE_JIT): returned as is
     assert _jit.link_as_compiled(_callee) is _callee  # marking another function hooks nothing again
     assert codegen.CPUCodeLibrary._optimize_final_module is hook
+
+
+REINSTALLED = r"""
+import sys, h4pin
+from h4pin import _numba_cache
+from h4pin.kinematics import pinocchio as kin
+assert h4pin.__file__.startswith(sys.argv[1]), h4pin.__file__
+before = kin.CONFIGURATION.cached()
+if sys.argv[2] == "compile":
+    h4pin.load()  # H4PIN_WARMUP=inline: compiles the configuration into the cache
+print(before, kin.CONFIGURATION.cached(), _numba_cache.folder())
+"""
+
+
+@pytest.mark.slow  # two pip installs of the package and one compile of the configuration (about 40 s)
+def test_a_reinstall_of_the_same_source_finds_the_compiled_kernels(tmp_path):
+    """``pip install`` of this source into a folder, the configuration compiled there, then the
+    same source installed again (``--upgrade``: the package's folder replaced, and with it
+    anything cached beside the code): the second install finds the compiled configuration in the
+    per-user cache (its gate is cached before anything runs), and compiles nothing."""
+    import importlib.util
+
+    if importlib.util.find_spec("pip") is None or importlib.util.find_spec("hatchling") is None:
+        pytest.skip("needs pip and hatchling (the test extra) to install the package")
+    target, cache = tmp_path / "site", tmp_path / "cache"
+    pip = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--no-index",
+           "--target", str(target)]
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    env.update(XDG_CACHE_HOME=str(cache), PYTHONPATH=str(target), H4PIN_WARMUP="inline")
+
+    def install(*extra):
+        out = subprocess.run([*pip, *extra, str(ROOT)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                             timeout=300)
+        assert out.returncode == 0, out.stderr
+
+    def run(action):
+        out = subprocess.run([sys.executable, "-c", REINSTALLED, str(target), action], cwd=tmp_path, env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        before, after, folder = out.stdout.split()
+        return before == "True", after == "True", folder
+
+    install()
+    marker = target / "h4pin" / "first-install"
+    marker.write_text("")
+    assert run("compile") == (False, True, str(cache / "h4pin" / "numba"))  # a fresh cache, then compiled
+    assert not any((target / "h4pin").rglob("*.nbi"))  # nothing beside the code
+    install("--upgrade")
+    assert not marker.exists()  # the package's folder was replaced
+    assert run("look") == (True, True, str(cache / "h4pin" / "numba"))  # found before any call

@@ -61,7 +61,7 @@ def test_the_h4_from_its_mjcf(h4, pose):
     """The H4's MJCF (connect equalities): assembled from the neutral configuration with the
     motors held at the pose's angles, D is at the pose and the control term is found again."""
     if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
-        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+        pytest.skip(f"needs Pinocchio >= 4 (closures read from MJCF), this is {pin.__version__}")
     mech = Mechanism.from_mjcf(ROOT / "mjcf" / "h4_prototype.xml")
     assert mech.actuated == tuple(h4.actuated_joint_names)
     # the file's own equality names (Pinocchio's reader leaves them unnamed)
@@ -269,3 +269,15 @@ def test_one_meaning_per_name_and_the_old_names_warn(h4, pose):
     for old, (new, removed) in deprecations.MOVED["h4pin.elastic"].items():
         with pytest.warns(DeprecationWarning, match=f"removed in h4pin {removed}"):
             assert getattr(elastic, old) is deprecations.resolve(new)
+
+
+def test_the_h4_doors_point_a_mechanism_to_its_own_methods():
+    """h4pin.compliance and h4pin.modes take the H4; given a Mechanism they say, in a whole
+    message, which method of the Mechanism computes the same."""
+    mech = Mechanism.from_urdf(ROOT / "tests" / "robots" / "5bar_linkage_iso3d" / "robot.urdf")
+    with pytest.raises(h4pin.ParameterError) as err:
+        h4pin.compliance(mech, np.zeros(4))
+    assert "Mechanism.compliance(q, springs, outputs)" in str(err.value) and "..." not in str(err.value)
+    with pytest.raises(h4pin.ParameterError) as err:
+        h4pin.modes(mech, np.zeros(4))
+    assert "Mechanism.modes(q, springs, locked)" in str(err.value) and "..." not in str(err.value)

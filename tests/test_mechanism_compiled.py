@@ -229,7 +229,7 @@ def test_compiled_equals_pinocchio_on_the_mjcf_corpus(path):
     joint couplings (rows the compiled path takes per configuration)."""
     pytest.importorskip("mujoco")
     if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
-        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+        pytest.skip(f"needs Pinocchio >= 4 (closures read from MJCF), this is {pin.__version__}")
     motors, frame = MJCF[path]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MechanismWarning)

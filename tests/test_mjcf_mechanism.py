@@ -18,7 +18,7 @@ from h4pin.mechanism import Mechanism
 
 mujoco = pytest.importorskip("mujoco")
 if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
-    pytest.skip("Pinocchio < 4 reads no closures from MJCF", allow_module_level=True)
+    pytest.skip(f"needs Pinocchio >= 4 (closures read from MJCF), this is {pin.__version__}", allow_module_level=True)
 
 HERE = Path(__file__).parent / "robots" / "synthetic"
 

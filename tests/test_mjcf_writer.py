@@ -125,7 +125,7 @@ def test_the_file_holds_the_springs_closures_and_rest(tmp_path):
     np.testing.assert_allclose(d.site("effector").xpos, pd.oMf[mech.model.getFrameId("effector")].translation,
                                rtol=0, atol=1e-12)
     if not hasattr(pin, "buildModelAndLegacyConstraintsFromMJCF"):
-        pytest.skip("Pinocchio < 4 reads no closures from MJCF")
+        pytest.skip(f"needs Pinocchio >= 4 (closures read from MJCF), this is {pin.__version__}")
     back = Mechanism.from_mjcf(path)
     assert back.springs == springs and set(back.actuated) == set(mech.actuated)
     assert len(back.constraint_models) == len(mech.constraint_models)

@@ -25,7 +25,8 @@ from h4pin.kinematics.closed_form import centre_pose
 ROOT = Path(__file__).resolve().parent.parent
 #: sha256 of the Apache License 2.0 as published at https://www.apache.org/licenses/LICENSE-2.0.txt
 APACHE_2_SHA256 = "cfc7749b96f63bd31c3c42b5c471bf756814053e847c10f3eb003417bc523d30"
-SKIP_DIRS = {".git", ".venv", "venv", "build", "dist", "__pycache__", ".pytest_cache", ".ruff_cache"}
+SKIP_DIRS = {".git", ".venv", "venv", "build", "dist", "__pycache__", ".pytest_cache", ".ruff_cache",
+             "_build", "auto_examples"}  # the last two: the documentation site's build (git-ignored)
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".urdf", ".txt", ".cfg", ".yaml", ".yml", ""}
 
 
@@ -185,10 +186,11 @@ def test_every_cited_h4pin_name_exists():
 @pytest.mark.slow  # a copied install in a private mount namespace, 7 s
 def test_a_read_only_install_imports_and_computes(tmp_path):
     """With the package folder and $HOME read-only (a system or container install), h4pin imports
-    and computes: numba's cache goes to a per-user temporary folder (read-only bind mounts in a
-    private mount namespace; skipped where the machine does not allow one)."""
+    and computes: numba's cache goes to a per-user temporary folder, the per-user cache folder
+    under $HOME being read-only too (read-only bind mounts in a private mount namespace; skipped
+    where the machine does not allow one)."""
     if shutil.which("unshare") is None:
-        pytest.skip("no unshare command")
+        pytest.skip("needs the unshare command (util-linux)")
     copy, home = tmp_path / "site", tmp_path / "home"
     home.mkdir()
     shutil.copytree(ROOT / "h4pin", copy / "h4pin", ignore=shutil.ignore_patterns("__pycache__"))
@@ -204,7 +206,7 @@ def test_a_read_only_install_imports_and_computes(tmp_path):
     script = (f"mount --bind -o ro {copy} {copy} && mount --bind -o ro {home} {home} && "
               f"HOME={home} TMPDIR={cache} {sys.executable} -c \"{code}\" {copy}")
     out = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=300,
-                         env={k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"})
+                         env={k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")})
     if out.returncode != 0 and "Traceback" not in out.stderr:  # unshare or mount refused: Python never ran
         pytest.skip(f"no private read-only mounts here: {out.stderr.strip()}")
     assert out.returncode == 0, out.stderr

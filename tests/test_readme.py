@@ -1,12 +1,15 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The README runs as written: its Python blocks, its shell lines and its printed sample output.
+"""The README, and the guides that hold what it once said, run as written: their Python blocks,
+their shell lines and their printed sample output.
 
-The rules, so that the README can be rewritten without touching this file:
+The pages: ``README.md`` and :data:`GUIDES` (docs/ pages whose code came from the README). The
+rules, so that a page can be rewritten without touching this file:
 
-* ```` ```python ```` blocks run in order, in one namespace, in a fresh folder (the files they write
-  land there), under umask 077. Afterwards every :class:`h4pin.io.viewer.Scene` left in the
-  namespace is closed, no process they started may still run, and every file they wrote is
-  mode 0644.
+* ```` ```python ```` blocks run in order, one namespace a page, in a fresh folder (the files they
+  write land there) that links the checkout's ``tests/`` folder (its robots: a path such as
+  ``tests/robots/...`` reads as from the checkout's root), under umask 077. Afterwards every
+  :class:`h4pin.io.viewer.Scene` left in the namespace is closed, no process they started may
+  still run, and every file they wrote is mode 0644.
 * ```` ```bash ```` blocks: each line is a command; a trailing ``# comment`` documents it. ``&&``
   chains run step by step. ``h4pin`` (also ``.venv/bin/h4pin``) runs as ``<this python> -m
   h4pin.cli``; ``python``, ``python3`` and ``.venv/bin/python`` run as this interpreter. Steps not
@@ -15,6 +18,7 @@ The rules, so that the README can be rewritten without touching this file:
   - environment set-up, ``python3 -m venv`` and ``pip install``: they need the network, and the
     tests already run in the environment they make;
   - the test suite itself (``python -m pytest``);
+  - the documentation site's build (``python -m sphinx``): ``tests/test_docs.py`` builds it;
   - a server: ``h4pin view`` without ``--html``, unless its comment says it fails ``(exit N)`` with
     N != 0 (it then fails before any server starts; a time limit guards against a hang).
 
@@ -41,16 +45,20 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
+#: The guides in docs/ that hold code the README once carried (their blocks run by the same rules).
+GUIDES = ("first_use.md", "tour.md", "viewer.md", "studies.md", "motion.md", "build_in_code.md")
+PAGES = (README, *(ROOT / "docs" / name for name in GUIDES))
 FENCE = re.compile(r"^(?P<fence>`{3,}|~{3,})\s*(?P<info>[^\s`]*)")
 
 
 class Block(NamedTuple):
     lang: str
-    line: int  # README line of the block's first content line (1-based)
+    line: int  # page line of the block's first content line (1-based)
     text: str
+    page: str = "README.md"
 
 
-def blocks(text: str) -> list[Block]:
+def blocks(text: str, page: str = "README.md") -> list[Block]:
     """Fenced code blocks of a Markdown text, with their info word (``""`` if untagged)."""
     out, lines, n = [], text.splitlines(), 0
     while n < len(lines):
@@ -62,16 +70,20 @@ def blocks(text: str) -> list[Block]:
         end = start
         while end < len(lines) and not lines[end].startswith(fence):
             end += 1
-        out.append(Block(m["info"].lower(), start + 1, "\n".join(lines[start:end])))
+        out.append(Block(m["info"].lower(), start + 1, "\n".join(lines[start:end]), page))
         n = end + 1
     return out
 
 
-ALL = blocks(README.read_text(encoding="utf-8"))
+def page_name(path: Path) -> str:
+    return path.relative_to(ROOT).as_posix()
+
+
+ALL = [b for path in PAGES for b in blocks(path.read_text(encoding="utf-8"), page_name(path))]
 
 
 class Command(NamedTuple):
-    where: str  # README.md:<line>
+    where: str  # <page>:<line>
     text: str  # the command as written (no comment)
     comment: str
     expected_stdout: str | None  # console blocks only
@@ -98,7 +110,7 @@ def shell_commands() -> list[Command]:
         for k, line in enumerate(b.text.splitlines()):
             text, comment = split_comment(line)
             if text:
-                out.append(Command(f"README.md:{b.line + k}", text, comment, None))
+                out.append(Command(f"{b.page}:{b.line + k}", text, comment, None))
     return out
 
 
@@ -112,7 +124,7 @@ def console_commands() -> list[Command]:
         for a, k in enumerate(starts):
             stop = starts[a + 1] if a + 1 < len(starts) else len(lines)
             text, comment = split_comment(lines[k][2:])
-            out.append(Command(f"README.md:{b.line + k}", text, comment, "\n".join(lines[k + 1:stop])))
+            out.append(Command(f"{b.page}:{b.line + k}", text, comment, "\n".join(lines[k + 1:stop])))
     return out
 
 
@@ -124,6 +136,8 @@ def argv(step: str) -> tuple[list[str] | None, str]:
         return None, "sets up an environment (needs the network; the tests run in that environment)"
     if prog.startswith("python") and words[1:3] == ["-m", "pytest"]:
         return None, "runs the test suite itself"
+    if prog.startswith("python") and words[1:3] == ["-m", "sphinx"]:
+        return None, "builds the documentation site (tests/test_docs.py builds it)"
     if prog == "h4pin":
         return [sys.executable, "-m", "h4pin.cli", *words[1:]], ""
     if prog in ("python", "python3"):
@@ -156,27 +170,38 @@ def run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
 
 def check_written_files(folder: Path) -> None:
     """Everything written under ``folder`` (under umask 077) is mode 0644."""
-    modes = {str(p.relative_to(folder)): oct(stat.S_IMODE(p.stat().st_mode)) for p in folder.rglob("*") if p.is_file()}
+    modes = {}
+    for dirpath, _, filenames in os.walk(folder):  # not into the link to tests/
+        for name in filenames:
+            path = Path(dirpath) / name
+            if not path.is_symlink():
+                modes[str(path.relative_to(folder))] = oct(stat.S_IMODE(path.stat().st_mode))
     assert all(m == "0o644" for m in modes.values()), modes
 
 
 def test_the_readme_has_what_these_tests_check():
-    """The rules above find the README's blocks (a rewrite that breaks them fails here)."""
-    assert [b for b in ALL if b.lang == "python"], "no ```python block"
-    assert any(c.text == ".venv/bin/h4pin table2" for c in console_commands()), "no `$ .venv/bin/h4pin table2` sample"
+    """The rules above find the README's blocks (a rewrite that breaks them fails here): its
+    Table II sample, its Python examples, and in the guides the commands it once carried."""
+    readme = [b for b in ALL if b.page == "README.md"]
+    assert len([b for b in readme if b.lang == "python"]) >= 2, "no ```python blocks in the README"
+    assert any(c.text == ".venv/bin/h4pin table2" and c.where.startswith("README.md:") for c in console_commands()), \
+        "no `$ .venv/bin/h4pin table2` sample in the README"
+    assert {b.page for b in ALL if b.lang == "python"} >= {"README.md", "docs/tour.md", "docs/viewer.md"}
     runnable = [c for c in shell_commands() if any(argv(s)[0] for s in c.text.split("&&"))]
     assert len(runnable) >= 3
 
 
-def test_python_blocks_run_as_written(tmp_path, monkeypatch, no_process_left):
+@pytest.mark.parametrize("page", sorted({b.page for b in ALL if b.lang == "python"}))
+def test_python_blocks_run_as_written(page, tmp_path, monkeypatch, no_process_left):
     from h4pin.io import viewer
 
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "tests").symlink_to(ROOT / "tests", target_is_directory=True)
     namespace: dict = {"__name__": "__readme__"}
     old = os.umask(0o077)
     try:
-        for b in (b for b in ALL if b.lang == "python"):
-            code = compile("\n" * (b.line - 1) + b.text, str(README), "exec")  # tracebacks name README lines
+        for b in (b for b in ALL if b.lang == "python" and b.page == page):
+            code = compile("\n" * (b.line - 1) + b.text, str(ROOT / page), "exec")  # tracebacks name page lines
             exec(code, namespace)
     finally:
         os.umask(old)

@@ -259,7 +259,7 @@ def test_compute_inverse_dynamics_constraint_forces_holds_the_robot(proto, poses
     """
     _needs_point_constraints()
     if not hasattr(pin, "PointContactConstraintModel"):
-        pytest.skip("this Pinocchio has no PointContactConstraintModel")
+        pytest.skip(f"needs pinocchio.PointContactConstraintModel (Pinocchio >= 4), this is {pin.__version__}")
     m, data = proto.model, proto.model.createData()
     s, zero = _selection(proto), np.zeros(proto.model.nv)
     compliance, dt, friction = 1e-6, 1e-3, 1e3

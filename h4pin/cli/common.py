@@ -24,8 +24,9 @@ Model = Literal[MODELS]  # type: ignore[valid-type]
 
 app = typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None,
                   help="The H4 parallel robot on Pinocchio and its stiffness (Company et al., ICRA 2005), and any "
-                  "closed-loop robot's (--robot FILE). Guides and API reference: the docs/ folder of the source (and "
-                  "of the sdist); `python -m sphinx docs docs/_build/html` builds the site.")
+                  "closed-loop robot's (--robot FILE). Guides, API reference and examples: the docs/ folder of the "
+                  "source (and of the sdist), a site that `python -m sphinx -W -b html docs docs/_build/html` builds "
+                  "(the docs extra) into docs/_build/html/index.html.")
 
 
 def _version(value: bool) -> None:

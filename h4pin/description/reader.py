@@ -12,7 +12,7 @@ What is read, and checked, from the tree at its neutral configuration:
 
 * actuator i: the joint that carries frames A_i1, A_i2 (a revolute on the base); its axis u_i;
 * bar ij: the closure whose plate-side point is frame B_ij; the bar's two joints (a universal
-  joint centred on A_ij, below actuator i); its length |bar end - A_ij|;
+  joint centred on A_ij, below actuator i); its length ‖bar end - A_ij‖;
 * the plate: frame D on a free-flyer body; C_k on the revolute joint of lateral bar k, a child
   of that body; B_ij on a lateral bar. Optional frames P_i, A_i, B_i are checked if present.
 """

@@ -5,7 +5,7 @@ Each reachable grid point (status 0) of the chosen theta is drawn at its positio
 (viridis) by a quantity of the atlas -- by default the worst-direction compliance, the largest
 eigenvalue of K_tt of eq. 30 (Company, Pierrot, Fauroux, ICRA 2005). The quantities are those
 the atlas holds (:func:`quantities`: its data variables on the grid, with their ``units``), so an
-atlas with ``first_frequency`` or one a later release extends is drawn as it is stored.
+atlas with ``first_frequency`` or one a later release extends is drawn as it is stored::
 
     from h4pin import load
 

@@ -199,7 +199,7 @@ def _closed_form(g: H4Geometry, pose: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def bar_jacobians(g: H4Geometry, pts: Points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """w_ij (..., 8, 3) and the derivatives of (|B - A|^2 - l^2)/2 w.r.t. the plate
+    """w_ij (..., 8, 3) and the derivatives of (‖B - A‖^2 - l^2)/2 w.r.t. the plate
     coordinates [dD, dOmega, domega_1, domega_2] (..., 8, 8, i.e. M1 of eq. 6) and the
     actuator angles (..., 8, 4)."""
     shape = pts.Aij.shape[:-3]

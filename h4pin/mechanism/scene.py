@@ -13,7 +13,7 @@ is computed once. What it needs of the robot it draws (its *subject*) is small:
   (the ``actuated`` ones yellow), each link a rod from its parent joint, each closure's two points
   (``constraint_models``) red.
 
-The H4's viewer (:mod:`h4pin.io.viewer`) and :func:`show` here are its two clients.
+The H4's viewer (:mod:`h4pin.io.viewer`) and :func:`show` here are its two clients::
 
     from h4pin.mechanism import Mechanism, scene
 

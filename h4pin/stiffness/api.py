@@ -43,7 +43,7 @@ import numpy as np
 from h4pin import limits
 from h4pin.description.elements import Elements
 from h4pin.errors import LoadError, ParameterError
-from h4pin.inputs import check_choice, check_flag, check_instance, describe, real_array
+from h4pin.inputs import check_choice, check_flag, check_instance, describe, is_mechanism, real_array
 from h4pin.kinematics import closed_form as cf
 from h4pin.kinematics import pinocchio as kin
 from h4pin.robot import H4
@@ -237,6 +237,10 @@ def _check_call(h4: Any, model: Any, on_error: Any, method: Any, terms: Any) -> 
     """The arguments of :func:`compliance` other than the pose and ``elements`` (the slow side of its
     door: a subclass, a ``numpy.str_`` or a ``numpy.bool_`` passes, as plain values; anything
     else is a :class:`ParameterError` naming the argument)."""
+    if is_mechanism(h4):
+        raise ParameterError("h4pin.compliance computes the H4's compliance (eq. 30) and takes an h4pin.H4 "
+                             "(from h4pin.load), got a Mechanism: for any closed-loop robot call its own method, "
+                             "Mechanism.compliance(q, springs, outputs) (docs/mechanisms.md)")
     check_instance(h4, H4, "h4", "an h4pin.H4 (from h4pin.load)")
     return (check_choice(model, MODELS, "model"), check_choice(on_error, ON_ERRORS, "on_error"),
             check_choice(method, METHODS, "method"), check_flag(terms, "terms", none=True))

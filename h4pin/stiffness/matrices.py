@@ -59,7 +59,7 @@ class Matrices(NamedTuple):
 
 
 def bars(pts: Points) -> tuple[np.ndarray, np.ndarray]:
-    """w_ij = B_ij - A_ij (..., 8, 3) and l_ij = |w_ij| (..., 8)."""
+    """w_ij = B_ij - A_ij (..., 8, 3) and l_ij = ‖w_ij‖ (..., 8)."""
     shape = pts.Bij.shape[:-3]
     w = (pts.Bij - pts.Aij).reshape(*shape, 8, 3)
     return w, np.linalg.norm(w, axis=-1)

@@ -418,12 +418,12 @@ class CycleResult:
 
     @property
     def peak(self) -> np.ndarray:
-        """(3,) m, the largest |dD| per axis over the cycle."""
+        """(3,) m, the largest abs(dD) per axis over the cycle."""
         return np.abs(self.deflection[:, :3]).max(axis=0)
 
     @property
     def peak_norm(self) -> float:
-        """m, the largest |dD| over the cycle."""
+        """m, the largest ‖dD‖ over the cycle."""
         return float(np.linalg.norm(self.deflection[:, :3], axis=1).max())
 
     @property
@@ -433,12 +433,12 @@ class CycleResult:
 
     @property
     def rms_norm(self) -> float:
-        """m, the RMS of |dD| over one period."""
+        """m, the RMS of ‖dD‖ over one period."""
         return float(np.sqrt(np.mean(np.sum(self.deflection[self._period, :3] ** 2, axis=1))))
 
     @property
     def dynamic_peak_norm(self) -> float:
-        """m, the largest |dD| of :attr:`dynamic_deflection` over the cycle."""
+        """m, the largest ‖dD‖ of :attr:`dynamic_deflection` over the cycle."""
         return float(np.linalg.norm(self.dynamic_deflection[:, :3], axis=1).max())
 
     @property

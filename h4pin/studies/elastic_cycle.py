@@ -339,17 +339,17 @@ class ElasticCycle:
 
     @property
     def peak_quasi_static(self) -> float:
-        """m, the largest |tool displacement| over the cycle, quasi-static."""
+        """m, the largest ‖tool displacement‖ over the cycle, quasi-static."""
         return float(np.linalg.norm(self.quasi_static[:self.stop + 1], axis=1).max())
 
     @property
     def peak_dynamic(self) -> float:
-        """m, the largest |tool displacement| over the cycle and the stop, dynamic."""
+        """m, the largest ‖tool displacement‖ over the cycle and the stop, dynamic."""
         return float(np.linalg.norm(self.dynamic, axis=1).max())
 
     @property
     def residual(self) -> np.ndarray:
-        """(N - stop,) m, |dynamic - rest| at the tool after the stop (the static sag at rest,
+        """(N - stop,) m, ‖dynamic - rest‖ at the tool after the stop (the static sag at rest,
         :attr:`rest`, taken away)."""
         return np.linalg.norm(self.dynamic[self.stop:] - self.rest, axis=1)
 
@@ -433,7 +433,7 @@ class MujocoCycle:
 
     @property
     def residual(self) -> np.ndarray:
-        """(N - stop,) m, |displacement - the static sag at rest| after the stop (the sag: the
+        """(N - stop,) m, ‖displacement - the static sag at rest‖ after the stop (the sag: the
         settled start, the same pose)."""
         return np.linalg.norm(self.displacement[self.stop:] - self.displacement[0], axis=1)
 

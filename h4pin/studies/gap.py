@@ -94,7 +94,7 @@ def _perturbed(name: str, base: H4Params) -> tuple[H4Params, float]:
 def robustness(names: tuple[str, ...] = PERTURBATIONS, base: H4Params | None = None) -> list[Robustness]:
     """The conclusions of sections 1-2 of ``docs/gap.md`` under each perturbation: an actuator zero
     offset of +-3 deg (every actuator at 45 +- 3 deg instead of 45) and +-5 % on each length the
-    paper does not state (the parallelogram half-width; the revolute joints C_k's |y| and z)."""
+    paper does not state (the parallelogram half-width; the revolute joints C_k's abs(y) and z)."""
     base = base or H4Params()
     out = []
     for name in names:
@@ -142,7 +142,7 @@ class Combination(NamedTuple):
     fitted: np.ndarray  #: (4,) xx, yy, zz, xz of the combination, m/N
     misfit: np.ndarray  #: (4,) fitted - target, m/N
     rms: float  #: root mean square of misfit, m/N
-    max_abs: float  #: largest |misfit|, m/N
+    max_abs: float  #: largest abs(misfit), m/N
 
 
 def _combination(blocks: dict[str, np.ndarray], factors: np.ndarray, target: np.ndarray) -> Combination:
@@ -162,7 +162,7 @@ def best_combination(blocks: dict[str, np.ndarray], target: np.ndarray = COMPUTE
 
 
 def minimax_combination(blocks: dict[str, np.ndarray], target: np.ndarray = COMPUTED) -> Combination:
-    """Non-negative factors on the terms that minimise the largest |misfit| over xx, yy, zz, xz
+    """Non-negative factors on the terms that minimise the largest abs(misfit) over xx, yy, zz, xz
     (a linear programme, ``scipy.optimize.linprog``). Its ``max_abs`` is the least misfit any
     choice of spring constants can reach at this geometry."""
     a = np.stack([entries(blocks[t]) for t in blocks], axis=1) * _US
@@ -216,7 +216,7 @@ def _dc(base: H4Params, dx: float, dy: float) -> np.ndarray:
 
 def moved_joints(base: H4Params, dx: float, dy: float) -> H4Params:
     """``base`` with both revolute joints C_k moved by dx along x (along the lateral bars) and
-    outwards by dy (|y| of C_k grows by dy); mirror symmetry about y = 0 is kept."""
+    outwards by dy (abs(y) of C_k grows by dy); mirror symmetry about y = 0 is kept."""
     return base.replace(DC=_dc(base, dx, dy))
 
 

@@ -47,8 +47,10 @@ def report(h4: H4, model: str = "paper") -> str:
         cells = []
         for b in range(3):
             ref = PAPER_COMPUTED[a, b]
-            cells.append(f"{(exact[a, b] - ref) / ref * 100:8.0f}%" if ref else f"{ours[a, b] - ref:+8.1f} ")
+            cell = f"{(exact[a, b] - ref) / ref * 100:+.0f}%" if ref else f"{ours[a, b] - ref + 0.0:+.1f}"
+            cells.append(f"{cell:>9}")  # right-aligned as the tables above
         lines.append(f"{'  d' + rows[a]:<28}" + "".join(cells))
+    lines.append("  (relative gap; where the paper's entry is 0, our value minus it in um/N)")
     lines += ["", "per-term split [um/N]:  " + "  ".join(f"{t:>9}" for t in TERMS)]
     for a, b in ((0, 0), (1, 1), (2, 2), (0, 2)):
         lines.append(f"  d{rows[a]}/F{rows[b]}{'':<16}" + "  ".join(f"{res.terms[t][a, b] * 1e6:9.2f}" for t in TERMS))
