@@ -134,7 +134,8 @@ def _leg() -> Mechanism:
 
 def test_the_jacobian_of_a_closed_leg_with_held_joints():
     """The Cassie-like leg (two 6D closures, joints held rigid in the equilibrium that the loops'
-    assembly still moves): the Jacobian of every group equals central differences (1e-6)."""
+    assembly still moves): the Jacobian of every group equals central differences (1e-6); a
+    placement's rotation about a passive joint's own axis moves nothing (the joint takes it up)."""
     leg = _leg()
     rng = np.random.default_rng(0)
     meas = Measurements(motors=rng.uniform(-0.2, 0.2, (3, 5)), points={"foot": np.zeros((3, 3))},
@@ -152,7 +153,10 @@ def test_the_jacobian_of_a_closed_leg_with_held_joints():
         down[k] -= h
         fd = (model.predict(up)[0] - model.predict(down)[0]) / (2 * h) * model.sigma[k]
         assert np.abs(jac[..., k] - fd).max() < 1e-6 * scale, params[k].name
-        assert np.abs(fd).max() > 1e-4 * scale, params[k].name  # every parameter moves the foot
+        if params[k].name == "geometry/free_ankle/rz":  # about the passive joint's own axis: the joint takes it up
+            assert np.abs(fd).max() < 1e-5 * scale
+        else:  # every other parameter moves the foot
+            assert np.abs(fd).max() > 1e-4 * scale, params[k].name
 
 
 def test_a_calibrated_robot_read_back_predicts_the_same_markers(fitted, tmp_path):

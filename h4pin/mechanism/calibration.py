@@ -14,13 +14,15 @@ the base pose. The parameters, SI, named ``group/target[/axis]``:
   around the given start);
 * ``markers/<frame>/x`` ...: each marker's offset from its frame, in the frame's axes;
 * ``offsets/<joint>``: a commanded coordinate's zero offset (the motors' of a closed loop);
-* ``geometry/<joint>/tx`` ... ``/rz``: the joint's placement in its parent, ``M exp6(δ)``;
+* ``geometry/<joint>/tx`` ... ``/rz``: the joint's placement in its parent, ``M (t, exp3(r))``
+  (a translation, then a rotation about the moved origin: a rotation about the joint's own axis
+  is exactly its zero offset, whatever the translation);
 * ``springs/<joint>``: a joint spring's stiffness (N.m/rad, N/m), fitted in ``log``;
 * ``lateral/<joint>/a``, ``/b``: two elastic hinges about the axes perpendicular to the joint's
   (the bearing's tilt and the link's bending, inserted where asked), fitted in ``log``;
 * ``beams/<link>``: a flexible link's stiffness scale (all its virtual joints), in ``log``;
-* ``masses/<joint>/m``, ``/cx``, ``/cy``, ``/cz``: the mass a joint carries and its centre (its
-  frame), what gravity makes identifiable.
+* ``masses/<joint>/m``, ``/cx``, ``/cy``, ``/cz``: the mass a joint carries (fitted in ``log``)
+  and its centre (its frame), what gravity makes identifiable.
 
 **The fit.** Levenberg-Marquardt (trust region, SciPy's ``least_squares`` through
 :mod:`h4pin.mechanism.fitting`, a robust ``loss`` as SciPy's) of the residuals ``(predicted -
@@ -33,10 +35,15 @@ slows the convergence a little, never moves the solution).
 
 **Identifiability.** The SVD of the Jacobian in prior units names the combinations the data do not
 inform (a singular value below :data:`IDENTIFIABLE_TOL` of the largest, or a standard deviation
-from the data alone above :data:`HELD_STD` prior sigmas): they are held at the prior (the fit moves
-in the others only) and listed in :attr:`Calibration.unidentifiable`, never left to drift. The
-covariance is ``(Jᵀ J + I)⁻¹`` in prior units on the identified combinations, the prior's on the
-held ones (the noise estimated from the residuals unless given).
+from the data alone above :data:`HELD_STD` prior sigmas): they are left to the prior and listed in
+:attr:`Calibration.unidentifiable`, never left to drift: the fit weighs every combination with
+its prior, so one the data do not see stays at the prior's nominal to first order (and moves only
+as the others' curvature asks: a joint's offset beside its neighbour's placement is a curved
+degeneracy, and held on its straight line its second-order part would bend the identified
+parameters). The covariance is ``(Jᵀ J + I)⁻¹`` in prior units on the identified combinations, the
+prior's on the others; the noise is estimated from the residuals unless given. The standard
+deviations are the linearisation's at the solution: where a degeneracy bends over the prior's
+width, :func:`coverage` tells how honest they are for an experiment.
 """
 
 from __future__ import annotations
@@ -58,7 +65,7 @@ from h4pin.mechanism.sensitivity import Sensitivity
 
 #: The parameter groups, in the order a stage table usually adds them.
 GROUPS = ("base", "markers", "offsets", "geometry", "springs", "lateral", "beams", "masses")
-#: The prior's default sigma of each group (SI; a factor for the log-fitted groups).
+#: The prior's default sigma of each group (SI; of the log for the log-fitted groups and a mass).
 SIGMA = {"base": (0.1, 0.1), "markers": 0.01, "offsets": (0.05, 0.005), "geometry": (0.005, 0.01),
          "springs": math.log(10.0), "lateral": math.log(100.0), "beams": math.log(10.0), "masses": (0.5, 0.05)}
 #: A lateral hinge's nominal stiffness: this times its joint's spring (or LATERAL_STIFFNESS).
@@ -70,8 +77,7 @@ IDENTIFIABLE_TOL, HELD_STD = 1e-6, 10.0
 #: The fit's relative tolerance (SciPy's ftol, xtol, gtol): a cost a few hundred noise-scaled
 #: squares stops changing below a thousandth of one (a fraction of its statistical spread, ~1).
 TOL = 1e-6
-#: The most fits of one calibration: again from the solution while the noise's estimate or the
-#: identified combinations there change.
+#: The most fits of one calibration: again from the solution while the noise's estimate changes.
 ROUNDS = 4
 _AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 
@@ -119,7 +125,8 @@ def parameters(mech: Any, groups: Any, springs: Mapping[str, float], markers: Se
     if unknown:
         raise ParameterError(f"parameters: unknown group {unknown[0]!r} (groups: {', '.join(GROUPS)})")
     out: list[Parameter] = []
-    movable = [model.names[j] for j in range(1, model.njoints) if model.joints[j].nq == 1]
+    movable = [model.names[j] for j in range(1, model.njoints)
+               if model.joints[j].nq == 1 and model.names[j] not in mech.beam_springs]  # not a virtual joint
     for group, targets in spec.items():
         if group == "base":
             out += [Parameter(f"base/{a}", "base", "base", k, 0.0, SIGMA["base"][k // 3]) for k, a in enumerate(_AXES)]
@@ -162,8 +169,8 @@ def parameters(mech: Any, groups: Any, springs: Mapping[str, float], markers: Se
             for j in _targets(targets, heavy, group):
                 jid = _joint_of(model, j, group)
                 inertia = model.inertias[jid]
-                out.append(Parameter(f"masses/{j}/m", group, j, 0, float(inertia.mass),
-                                     SIGMA["masses"][0] * max(float(inertia.mass), 1e-3)))
+                out.append(Parameter(f"masses/{j}/m", group, j, 0, math.log(max(float(inertia.mass), 1e-3)),
+                                     SIGMA["masses"][0], True))
                 out += [Parameter(f"masses/{j}/c{a}", group, j, k + 1, float(inertia.lever[k]), SIGMA["masses"][1])
                         for k, a in enumerate("xyz")]
     names = [p.name for p in out]
@@ -173,6 +180,21 @@ def parameters(mech: Any, groups: Any, springs: Mapping[str, float], markers: Se
     if not out:
         raise ParameterError("parameters: give at least one group (groups: " + ", ".join(GROUPS) + ")")
     return out
+
+
+def placement_error(d: np.ndarray) -> pin.SE3:
+    """A geometry parameter's correction ``(t, exp3(r))`` of a joint placement, d = (t, r)."""
+    return pin.SE3(pin.exp3(np.asarray(d[3:], float)), np.asarray(d[:3], float))
+
+
+def commanded_joints(mech: Any, meas: Measurements, motors: bool = True) -> tuple[str, ...]:
+    """The joints a sample commands: the motors of a closed loop measured by ``motors`` (with
+    ``motors=True``), else every joint of the model but the mechanism's own virtual joints (a
+    beam's, a lateral hinge's)."""
+    if motors and meas.motors is not None:
+        return tuple(mech.actuated)
+    model = mech.model
+    return tuple(model.names[j] for j in range(1, model.njoints) if model.names[j] not in mech.beam_springs)
 
 
 def with_lateral(mech: Any, joints: Iterable[str], springs: Mapping[str, float]) -> Any:
@@ -215,6 +237,30 @@ def _axis_of(model: pin.Model, d: pin.Data, j: int) -> np.ndarray:
 
 
 
+#: The most steps of the motor path :func:`_assemble_towards` takes from a far start.
+PATH_STEPS = 64
+
+
+def _assemble_towards(mech: Any, start: np.ndarray, motors: np.ndarray, idx: Sequence[int]) -> np.ndarray:
+    """The loops closed at ``motors`` from ``start``: directly, else along the straight motor
+    path from the start's motors in steps halved until each closes from the one before (a first
+    sample far from the reference, as a tracker session's usually is)."""
+    from h4pin.mechanism.engine import UnassembledError
+
+    try:
+        return mech.assemble(start, motors=motors)
+    except UnassembledError:
+        steps = 4
+        while True:
+            path = start[idx] + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (motors - start[idx])[None, :]
+            try:
+                return mech.assemble(start, motors=path)[-1]
+            except UnassembledError:
+                if steps >= PATH_STEPS:
+                    raise
+                steps *= 2
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Robot:
     """The robot one parameter vector describes: its mechanism (placements and masses set), its
@@ -252,7 +298,7 @@ class Model(Sensitivity):
             nq = mech.configuration(meas.configurations[0]).shape[0]
             if nq != model.nq:
                 raise ParameterError("measurements: a configuration of the mechanism (nq)")
-            self.commanded = tuple(model.names[j] for j in range(1, model.njoints))
+            self.commanded = commanded_joints(mech, meas)
         for f in (meas.loads or {}):
             if not model.existFrame(f):
                 raise ParameterError(f"measurements: load on {f!r}, not a frame of {mech.name}")
@@ -293,12 +339,12 @@ class Model(Sensitivity):
                 inertia = model.inertias[j]
                 mass, lever = float(inertia.mass), np.array(inertia.lever)
                 if p.index == 0:
-                    mass = max(float(v), 0.0)
+                    mass = p.value(v)
                 else:
                     lever[p.index - 1] = v
                 model.inertias[j] = pin.Inertia(mass, lever, inertia.inertia)
         for j, d in geometry.items():
-            model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(pin.Motion(d[:3], d[3:]))
+            model.jointPlacements[j] = model.jointPlacements[j] * placement_error(d)
         base = pin.exp6(pin.Motion(delta_base[:3], delta_base[3:])) * base
         return Robot(self.mech.with_model(model), springs, base, markers, offsets)
 
@@ -312,7 +358,7 @@ class Model(Sensitivity):
             idx = [mech.model.joints[mech.model.getJointId(n)].idx_q for n in mech.actuated]
             start = self.rests[i] if self.rests[i] is not None else (
                 self.rests[i - 1] if i and self.rests[i - 1] is not None else mech.reference)
-            rest = mech.assemble(start, motors=meas.motors[i] + rob.offsets[idx])
+            rest = _assemble_towards(mech, start, meas.motors[i] + rob.offsets[idx], idx)
             self.rests[i] = rest
         loads = {f: w[i] for f, w in (meas.loads or {}).items()} or None
         if not self.gravity and loads is None:
@@ -450,17 +496,19 @@ def _prior(params: list[Parameter], prior: Mapping[str, Any] | None) -> list[Par
 
 def _fit(model: Model, noise: float, loss: str, iterations: int, x: np.ndarray, at: tuple[Any, ...]
          ) -> tuple[np.ndarray, float]:
-    """The fit of ``model`` from x in the combinations the data identify at x (``at``: x's
-    prediction, states and Jacobian), the others held where x has them: ``(x, cost)``."""
+    """The fit of ``model`` from x (``at``: x's prediction, states and Jacobian) in the prior's
+    units, along the combinations of the Jacobian at x: ``(x, cost)``. Every combination is
+    fitted with its prior: one the data do not inform stays at the prior's nominal to first order
+    and moves only as far as the others' curvature asks (an offset beside a placement is a curved
+    degeneracy: held on its straight line, its second-order part would bend the others)."""
     obs = model.meas.observed()
     seen = np.isfinite(obs)
     x0, sig = model.x0, model.sigma
     jac_at = at[2] / noise
-    _, vt, keep = _split(at[2], noise, sig)
-    v = vt[keep].T
-    base = (x - x0) / sig
-    w0 = v.T @ base
-    rest = base - v @ w0  # the held combinations stay where x has them (the prior's nominal, first)
+    _, vt, _ = _split(at[2], noise, sig)
+    v = vt.T
+    rest = np.zeros(len(x0))
+    w0 = v.T @ ((x - x0) / sig)
     cache: dict[bytes, Any] = {w0.tobytes(): at[:2]}
 
     def evaluate(w: np.ndarray) -> tuple[np.ndarray, list[Any]]:
@@ -493,13 +541,6 @@ def _split(jac: np.ndarray, noise: float, sigma: np.ndarray) -> tuple[np.ndarray
     noise, and those the data identify."""
     s, vt = fitting.combinations(jac / noise, sigma)
     return s, vt, fitting.split(s, IDENTIFIABLE_TOL, HELD_STD)
-
-
-def _same(a: np.ndarray, b: np.ndarray) -> bool:
-    """Two identified subspaces (rows of orthonormal bases) are the same."""
-    if a.shape != b.shape:
-        return False
-    return not a.size or float(np.linalg.svd(a @ b.T, compute_uv=False).min()) > 1.0 - 1e-6
 
 
 def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", "markers"), *,
@@ -545,22 +586,20 @@ def calibrate(mech: Any, measurements: Measurements, parameters: Any = ("base", 
     x, cost = model.x0, math.inf
     pred, states = model.predict(x)
     at = (pred, states, model.jacobian(x, states)[seen])
-    # The fit in what the data identify at its start; again from its solution while the noise's
-    # estimate or the identified combinations there change (a non-linear model identifies more, or
-    # less, away from the nominal).
+    # The fit; again from its solution while the noise's estimate changes the prior's weight.
     for _ in range(ROUNDS):
-        _, vt, keep = _split(at[2], sigma, model.sigma)
         x, cost = _fit(model, sigma, loss, iterations, x, at)
         pred, states = model.predict(x)
         at = (pred, states, model.jacobian(x, states)[seen])
-        changed = False
-        if noise is None:  # the noise of the residuals; the fit again if it weighs the prior otherwise
-            res = (pred - obs)[seen]
-            estimate = float(np.sqrt(np.sum(res**2) / max(res.size - int(keep.sum()), 1)))
-            changed = not 0.5 < estimate / sigma < 2.0
-            sigma = estimate
-        _, vt_now, keep_now = _split(at[2], sigma, model.sigma)
-        if not changed and _same(vt[keep], vt_now[keep_now]):
+        if noise is not None:
+            break
+        # the noise of the residuals, over the data's share of the degrees of freedom
+        res = (pred - obs)[seen]
+        s, _, _ = _split(at[2], sigma, model.sigma)
+        estimate = float(np.sqrt(np.sum(res**2) / max(res.size - float(np.sum(s**2 / (s**2 + 1.0))), 1.0)))
+        changed = not 0.5 < estimate / sigma < 2.0
+        sigma = estimate
+        if not changed:
             break
     return _result(model, x, sigma, cost, at)
 
@@ -578,12 +617,12 @@ def _model(mech: Any, measurements: Measurements, parameters: Any, springs: Mapp
     spec = {g: None for g in parameters} if not isinstance(parameters, Mapping) else dict(parameters)
     if "lateral" in spec:
         mech = with_lateral(mech, _targets(spec["lateral"], [], "lateral") or
-                            [mech.model.names[j] for j in range(1, mech.model.njoints) if mech.model.joints[j].nq == 1],
+                            [n for n in commanded_joints(mech, measurements, motors=False)
+                             if mech.model.joints[mech.model.getJointId(n)].nq == 1],
                             nominal)
     base = pin.SE3.Identity() if base is None else pin.SE3(np.asarray(base, float)) if not isinstance(base, pin.SE3) \
         else base
-    commanded = tuple(mech.actuated) if measurements.motors is not None else \
-        tuple(mech.model.names[j] for j in range(1, mech.model.njoints))
+    commanded = commanded_joints(mech, measurements)
     params = parameters_of(mech, spec, nominal, measurements.markers, commanded)
     params = _prior(params, prior)
     lock = tuple(joint_names(mech.model, locked, "locked"))
@@ -645,6 +684,12 @@ class Coverage:
 
     @property
     def fraction(self) -> float:
+        """The fraction of runs in which every parameter the run identified is within 3 std of
+        the truth (the others are the prior's: within 3 std as often as the prior draws so)."""
+        return float(np.mean(np.all((np.abs(self.z) < 3.0) | ~self.identified, axis=1)))
+
+    @property
+    def every(self) -> float:
         """The fraction of runs in which every parameter is within 3 std of the truth."""
         return float(np.mean(np.all(np.abs(self.z) < 3.0, axis=1)))
 
@@ -654,8 +699,10 @@ class Coverage:
         for k, n in enumerate(self.names):
             lines.append(f"{n:<34}{np.mean(np.abs(self.z[:, k]) < 3.0):>13.0%}{np.mean(self.identified[:, k]):>11.0%}"
                          f"{np.std(self.z[:, k]):>8.2f}")
-        lines.append(f"every parameter within 3 std: {self.fraction:.0%} of {len(self.z)} runs; residual RMS / noise "
-                     f"{np.mean(self.rms):.3f} (min {np.min(self.rms):.3f}, max {np.max(self.rms):.3f}); a fit "
+        lines.append(f"{len(self.z)} runs: every identified parameter within 3 std in {self.fraction:.0%}, every "
+                     f"parameter in {self.every:.0%}; residual RMS / noise {np.mean(self.rms):.3f} (min "
+                     f"{np.min(self.rms):.3f}, max {np.max(self.rms):.3f}); the noise estimated within "
+                     f"{np.max(np.abs(self.noise - 1.0)):.0%} (mean {np.mean(self.noise):.3f}); a fit "
                      f"{np.mean(self.seconds):.1f} s")
         return "\n".join(lines)
 
@@ -681,17 +728,23 @@ def coverage(mech: Any, parameters: Any, markers: Sequence[str], *, runs: int = 
     job = functools.partial(_coverage_run, mech, parameters, tuple(markers), motors, configurations, loads, noise,
                             {"springs": springs, "prior": prior, "gravity": gravity, "locked": locked}, options)
     seeds = range(seed, seed + runs)
-    if workers == 1 or "fork" not in multiprocessing.get_all_start_methods():
-        out = [job(s) for s in tqdm(seeds, desc="coverage", unit="run", disable=not progress)]
-    else:  # forked: the job (its mechanism is not picklable) inherited, the results sent back
-        global _JOB
-        _JOB = job
-        try:
-            with multiprocessing.get_context("fork").Pool(min(workers, runs)) as pool:
-                out = list(tqdm(pool.imap(_run_job, seeds), total=runs, desc="coverage", unit="run",
-                                disable=not progress))
-        finally:
-            _JOB = None
+    with tqdm(total=runs, desc="coverage", unit="run", disable=not progress) as bar:
+        out = [job(seeds[0])]  # here first: a bad argument is its typed error, not a worker's traceback
+        bar.update()
+        if workers == 1 or runs == 1 or "fork" not in multiprocessing.get_all_start_methods():
+            for s in seeds[1:]:
+                out.append(job(s))
+                bar.update()
+        else:  # forked: the job (its mechanism is not picklable) inherited, the results sent back
+            global _JOB
+            _JOB = job
+            try:
+                with multiprocessing.get_context("fork").Pool(min(workers, runs - 1)) as pool:
+                    for o in pool.imap(_run_job, seeds[1:]):
+                        out.append(o)
+                        bar.update()
+            finally:
+                _JOB = None
     names = out[0][0]
     return Coverage(names, *(np.array([o[k] for o in out]) for k in range(1, 5)),
                     tuple(o[5] for o in out), np.array([o[6] for o in out]))
@@ -717,10 +770,15 @@ def _coverage_run(mech: Any, parameters: Any, markers: tuple[str, ...], motors: 
     c = calibrate(mech, meas, parameters, **common, **options)
     seconds = time.perf_counter() - start
     names = tuple(truth)
-    sigma = {p.name: p.sigma * (c.values[p.name] if p.log else 1.0) for p in c.model.params}
+    params = {p.name: p for p in c.model.params}
+
+    def fitted(name: str, value: float) -> float:  # z in the fitted variable (a stiffness's log)
+        return math.log(value) if params[name].log else value
+
+    std = {n: c.std[n] / (c.values[n] if params[n].log else 1.0) for n in names}
     res = c.residuals[np.isfinite(c.residuals)]
-    return (names, [(c.values[n] - truth[n]) / c.std[n] for n in names],
-            [c.std[n] < 0.5 * sigma[n] for n in names], float(np.sqrt(np.mean(res**2))) / noise, c.noise / noise,
+    return (names, [(fitted(n, c.values[n]) - fitted(n, truth[n])) / std[n] for n in names],
+            [std[n] < 0.5 * params[n].sigma for n in names], float(np.sqrt(np.mean(res**2))) / noise, c.noise / noise,
             c.unidentifiable, seconds)
 
 def parameters_of(mech: Any, spec: Mapping[str, Any], springs: Mapping[str, float], markers: Sequence[str],
@@ -836,8 +894,7 @@ def _nominal(mech: Any, meas: Measurements, options: Mapping[str, Any]) -> Calib
     nominal = {n: float(k) for n, k in zip(names, springs.values(), strict=True)}
     base = options.get("base")
     base = pin.SE3.Identity() if base is None else base if isinstance(base, pin.SE3) else pin.SE3(np.asarray(base))
-    commanded = tuple(mech.actuated) if meas.motors is not None else \
-        tuple(mech.model.names[j] for j in range(1, mech.model.njoints))
+    commanded = commanded_joints(mech, meas)
     params = parameters(mech, ["base"], nominal, meas.markers, commanded)
     model = Model(mech, meas, params, {**mech.beam_springs, **nominal}, options.get("gravity", True),
                   tuple(joint_names(mech.model, options.get("locked", ()), "locked")), base)

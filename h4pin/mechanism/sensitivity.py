@@ -32,23 +32,14 @@ class Sensitivity:
     base0: pin.SE3
     robot: Any  # (x) -> Robot, the model's
 
-    def _perturbed(self, rob: Any, p: Any, h: float, local: int | None = None) -> pin.Model:
-        """The robot's model with a geometry parameter moved along its local axis ``local`` by h
-        (``M exp6(δ) exp6(h e)``), or a mass parameter by h, at fixed configuration."""
+    def _perturbed(self, rob: Any, p: Any, h: float, local: int) -> pin.Model:
+        """The robot's model with a geometry parameter's joint placement moved along its local
+        twist axis ``local`` by h (``M exp6(h e)``), at fixed configuration."""
         model = pin.Model(rob.mech.model)
         j = int(model.getJointId(p.target))
-        if p.group == "geometry":
-            d = np.zeros(6)
-            d[p.index if local is None else local] = h
-            model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(pin.Motion(d[:3], d[3:]))
-        else:  # masses
-            inertia = model.inertias[j]
-            mass, lever = float(inertia.mass), np.array(inertia.lever)
-            if p.index == 0:
-                mass += h
-            else:
-                lever[p.index - 1] += h
-            model.inertias[j] = pin.Inertia(mass, lever, inertia.inertia)
+        d = np.zeros(6)
+        d[local] = h
+        model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(pin.Motion(d[:3], d[3:]))
         return model
 
     def _terms(self, rob: Any, model: pin.Model, q: np.ndarray, eq: Any) -> tuple[np.ndarray, ...]:
@@ -117,8 +108,8 @@ class Sensitivity:
             if j not in jacobians:
                 jacobians[j] = np.reshape(pin.getJointJacobian(model, d, j, pin.LOCAL_WORLD_ALIGNED), (6, model.nv))
             jac, rot, inertia = jacobians[j], d.oMi[j].rotation, model.inertias[j]
-            if p.index == 0:
-                wrench = np.r_[g, np.cross(rot @ np.array(inertia.lever), g)]
+            if p.index == 0:  # the log of the mass: m times the unit mass's
+                wrench = float(inertia.mass) * np.r_[g, np.cross(rot @ np.array(inertia.lever), g)]
             else:
                 wrench = np.r_[np.zeros(3), float(inertia.mass) * np.cross(rot[:, p.index - 1], g)]
             out[k] = (np.zeros((m, 3)), zero_c, -eq.load_factor * jac.T @ wrench)
@@ -127,7 +118,8 @@ class Sensitivity:
     def _partials(self, rob: Any, x: np.ndarray, q: np.ndarray, eq: Any,
                   masses: bool = True) -> dict[int, tuple[np.ndarray, ...]]:
         """Each geometry and mass parameter's partial derivatives at the fixed q: ``(dx (m, 3),
-        dc, dF)``; a geometry parameter's by central differences through exp6's right Jacobian, a
+        dc, dF)``; a geometry parameter's by central differences along the local twists, mapped to
+        ``(t, r)``, a
         mass parameter's in closed form (:meth:`_mass_partials`; none with ``masses=False``)."""
         out: dict[int, tuple[np.ndarray, ...]] = {}
         done: dict[str, list[tuple[np.ndarray, ...]]] = {}
@@ -144,7 +136,10 @@ class Sensitivity:
                                           for a, b in zip(plus, minus, strict=True)))
                     delta = np.array([x[i] for i, q_ in enumerate(self.params)
                                       if q_.group == "geometry" and q_.target == p.target])
-                    jr = pin.Jexp6(pin.Motion(delta[:3], delta[3:])) if len(delta) == 6 else np.eye(6)
+                    jr = np.eye(6)  # the local twist of d(t, r): (Rᵀ dt, Jexp3(r) dr)
+                    if len(delta) == 6:
+                        jr[:3, :3] = pin.exp3(delta[3:]).T
+                        jr[3:, 3:] = pin.Jexp3(delta[3:])
                     done[p.target] = [tuple(None if cols[0][t] is None else
                                             sum(jr[a, b] * cols[a][t] for a in range(6)) for t in range(3))
                                       for b in range(6)]
