@@ -422,10 +422,16 @@ def calibration(rows: Sequence[Any], path: str | Path) -> Path:
     a.set_yscale("log")
     a.set_ylabel("marker error [mm]")
     a.legend(fontsize=7)
-    for r, colour in ((rows[0], "0.6"), (rows[-1], "C2")):
+    errors = []
+    for r in (rows[0], rows[-1]):
         e = np.linalg.norm(r.calibration.residuals, axis=-1).ravel() * 1e3
-        e = e[np.isfinite(e)]
-        b.hist(e, bins=40, color=colour, alpha=0.7, label=" + ".join(r.groups))
+        errors.append(e[np.isfinite(e) & (e > 0)])
+    every = np.concatenate(errors)
+    bins = np.geomspace(every.min(), every.max(), 60) if every.size and every.max() > every.min() else 40
+    for r, e, colour in ((rows[0], errors[0], "0.6"), (rows[-1], errors[1], "C2")):
+        b.hist(e, bins=bins, color=colour, alpha=0.7, label=" + ".join(r.groups))
+    if not isinstance(bins, int):
+        b.set_xscale("log")
     b.set_xlabel("marker error on the fitted samples [mm]")
     b.set_ylabel("readings")
     b.legend(fontsize=7)

@@ -256,6 +256,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="only time first use: each row in a fresh process with an empty numba cache")
     parser.add_argument("--pareto", type=int, default=0, metavar="DESIGNS",
                         help="also time the frequency-workspace-compliance Pareto sweep of this many designs")
+    parser.add_argument("--calibration", action="store_true",
+                        help="only the calibration rows (a five-bar, 200 poses; a 20-joint tree, 500 poses)")
     parser.add_argument("--mechanisms", action="store_true",
                         help="only the generic engine's rows: corpus robots, a plain KKT loop, Mechanism, with beams")
     parser.add_argument("--all", action="store_true",
@@ -265,9 +267,13 @@ def _parser() -> argparse.ArgumentParser:
 
 def main() -> None:
     args = _parser().parse_args()
+    if args.calibration:
+        calibration_rows()
+        return
     if args.mechanisms:
         mechanism_rows(args.repeat)
         loaded_rows()
+        calibration_rows()
         return
     if args.cold and not args.all:
         cold_table()
@@ -665,6 +671,73 @@ def loaded_rows() -> None:
     lin_s = best_of(3, lambda: h4pin.compliance(h4, grid, "consistent")) / len(grid)
     print(f"H4 loaded compliance over poses (sag, 0.5 kg): {sag_s * 1e3:.0f} ms a pose; its linear atlas "
           f"{lin_s * 1e6:.2f} us a pose: {sag_s / lin_s:,.0f}x (target 10x: missed)")
+
+
+def calibration_rows(full: bool = True) -> None:
+    """Calibration (h4pin.calibrate) on one core: the five-bar with a beam (the calibration
+    experiment's design, 200 poses, 24 parameters), and a humanoid's upper body (example-robot-data's
+    TALOS, legs and base locked: a 20-joint tree, markers on both hands, 500 poses, about 100
+    parameters: base, markers, offsets, springs and lateral hinges of the torso and arms, six
+    links' masses), each fitted from a synthetic tracker session under gravity."""
+    import importlib.util
+
+    from h4pin.mechanism import calibration as cal
+
+    spec = importlib.util.spec_from_file_location("calibration_experiment",
+                                                  Path(__file__).resolve().parent / "calibration_experiment.py")
+    exp = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(exp)
+    print("\ncalibration, one core (a synthetic tracker session under gravity, the noise estimated)")
+    print(f"{'robot':<34}{'joints':>7}{'samples':>8}{'params':>7}{'seconds':>9}{'target':>8}  error mean (noise)")
+    design = exp.five_bar()
+    rng = np.random.default_rng(5)
+    n = 200
+    design["motors"] = rng.uniform(-0.3, 0.3, (n, 2))
+    design["loads"] = {"effector": np.c_[rng.normal(0.0, 30.0, (n, 3)), np.zeros((n, 3))]}
+    rows = [("five-bar with a beam", design, 5.0)]
+    if full:
+        rows.append(("TALOS upper body (20-joint tree)", _upper_body(), 60.0))
+    for name, design, target in rows:
+        meas, _ = exp.session(design, seed=0)
+        start = time.perf_counter()
+        c = cal.calibrate(design["mech"], meas, design["parameters"], **exp.fit_options(design))
+        seconds = time.perf_counter() - start
+        joints = sum(1 for j in range(1, design["mech"].model.njoints)
+                     if design["mech"].model.names[j] not in design["mech"].beam_springs)
+        err = np.linalg.norm(c.residuals, axis=-1)
+        print(f"{name:<34}{joints:>7}{meas.n:>8}{len(c.values):>7}{seconds:>9.1f}{target:>7.0f}s  "
+              f"{np.nanmean(err) * 1e3:.3f} mm ({design['noise'] * 1e3:.2f} mm a coordinate)"
+              f"{'' if seconds <= target else '  (target missed)'}")
+
+
+def _upper_body() -> dict:
+    """TALOS's upper body as a calibration design (calibration_rows)."""
+    import example_robot_data as erd
+    import pinocchio as pin
+
+    from h4pin.mechanism import Mechanism
+
+    full = erd.load("talos").model
+    lock = [full.getJointId(n) for n in full.names[1:] if n.startswith(("root", "leg_"))]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full))
+    mech = Mechanism(model, [], [], name="talos upper body")
+    names = list(model.names)[1:]
+    body = [n for n in names if n.startswith(("torso", "arm_"))]
+    springs = {n: 2e3 if n.startswith("torso") else 500.0 for n in names}
+    rng = np.random.default_rng(11)
+    n = 500
+    lo, hi = np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
+    mid, half = 0.5 * (lo + hi), 0.3 * (hi - lo)  # the middle 60 % of each joint's range
+    q = mid + half * rng.uniform(-1.0, 1.0, (n, model.nq))
+    markers = ["gripper_left_base_link", "gripper_right_base_link"]
+    prior = {**{f"springs/{j}": (k, 0.3 * k) for j, k in springs.items()},
+             **{f"offsets/{j}": (0.0, 0.01) for j in names}}
+    return {"mech": mech, "markers": markers, "springs": springs, "prior": prior, "noise": 1e-3,
+            "parameters": {"base": None, "markers": None, "offsets": body, "springs": body, "lateral": body[2:],
+                           "masses": ["torso_2_joint", "arm_left_2_joint", "arm_left_4_joint", "arm_right_2_joint",
+                                      "arm_right_4_joint", "head_1_joint"]},
+            "configurations": q,
+            "loads": {m: np.zeros((n, 6)) for m in markers}}
 
 
 def _mechanism_row(urdf: Path, repeat: int, n: int = 512) -> dict[str, float]:

@@ -147,6 +147,10 @@ def fit_options(design: dict) -> dict:
     return {k: design[k] for k in ("springs", "prior", "locked") if k in design}
 
 
+#: The leg's stage table: the groups each stage adds.
+STAGES = [["base"], ["offsets"], ["springs"], {"lateral": ["motor_knee"]}, {"masses": ["free_knee"]}]
+
+
 def stage_table(out: Path | None) -> None:
     from h4pin import plots
     from h4pin.mechanism import calibration as cal
@@ -154,9 +158,7 @@ def stage_table(out: Path | None) -> None:
     design = leg(n=60)
     meas, truth = session(design, seed=1)
     start = time.perf_counter()
-    rows = cal.stages(design["mech"], meas, [["base"], ["offsets"], ["springs"], {"lateral": ["motor_knee"]},
-                                                     {"masses": ["free_knee"]}],
-                      holdout=0.25, **fit_options(design))
+    rows = cal.stages(design["mech"], meas, STAGES, holdout=0.25, **fit_options(design))
     print(f"\nCassie-like leg, 60 poses (15 held out), markers foot and foot_frame, 0.1 mm noise "
           f"({time.perf_counter() - start:.0f} s):")
     print(cal.stage_table(rows))

@@ -46,7 +46,8 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 #: The guides in docs/ that hold code the README once carried (their blocks run by the same rules).
-GUIDES = ("first_use.md", "tour.md", "viewer.md", "studies.md", "motion.md", "build_in_code.md")
+GUIDES = ("first_use.md", "tour.md", "viewer.md", "studies.md", "motion.md", "build_in_code.md", "loaded.md",
+          "calibration.md")
 PAGES = (README, *(ROOT / "docs" / name for name in GUIDES))
 FENCE = re.compile(r"^(?P<fence>`{3,}|~{3,})\s*(?P<info>[^\s`]*)")
 
