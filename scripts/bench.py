@@ -673,7 +673,7 @@ def loaded_rows() -> None:
           f"{lin_s * 1e6:.2f} us a pose: {sag_s / lin_s:,.0f}x (target 10x: missed)")
 
 
-def calibration_rows(full: bool = True) -> None:
+def calibration_rows(full: bool = True, five_bar: bool = True) -> None:
     """Calibration (h4pin.calibrate) on one core: the five-bar with a beam (the calibration
     experiment's design, 200 poses, 24 parameters), and a humanoid's upper body (example-robot-data's
     TALOS, legs and base locked: a 20-joint tree, markers on both hands, 500 poses, about 100
@@ -694,7 +694,7 @@ def calibration_rows(full: bool = True) -> None:
     n = 200
     design["motors"] = rng.uniform(-0.3, 0.3, (n, 2))
     design["loads"] = {"effector": np.c_[rng.normal(0.0, 30.0, (n, 3)), np.zeros((n, 3))]}
-    rows = [("five-bar with a beam", design, 5.0)]
+    rows = [("five-bar with a beam", design, 5.0)] if five_bar else []
     if full:
         rows.append(("TALOS upper body (20-joint tree)", _upper_body(), 60.0))
     for name, design, target in rows:
@@ -731,7 +731,8 @@ def _upper_body() -> dict:
     q = mid + half * rng.uniform(-1.0, 1.0, (n, model.nq))
     markers = ["gripper_left_base_link", "gripper_right_base_link"]
     prior = {**{f"springs/{j}": (k, 0.3 * k) for j, k in springs.items()},
-             **{f"offsets/{j}": (0.0, 0.01) for j in names}}
+             **{f"offsets/{j}": (0.0, 0.01) for j in names},
+             **{f"lateral/{j}/{a}": (10 * springs[j], 3 * springs[j]) for j in body[2:] for a in "ab"}}
     return {"mech": mech, "markers": markers, "springs": springs, "prior": prior, "noise": 1e-3,
             "parameters": {"base": None, "markers": None, "offsets": body, "springs": body, "lateral": body[2:],
                            "masses": ["torso_2_joint", "arm_left_2_joint", "arm_left_4_joint", "arm_right_2_joint",
