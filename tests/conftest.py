@@ -200,9 +200,6 @@ SLOW_IDS = frozenset({
     'tests/test_pipeline.py::test_bar_interpenetration_status',
     'tests/test_pipeline.py::test_compiled_code_is_cached',
     'tests/test_readme.py::test_printed_samples_match_the_commands[README.md:* .venv/bin/h4pin table2]',
-    'tests/test_readme.py::test_python_blocks_run_as_written[docs/motion.md]',
-    'tests/test_readme.py::test_python_blocks_run_as_written[docs/tour.md]',
-    'tests/test_readme.py::test_python_blocks_run_as_written[docs/viewer.md]',
     ('tests/test_readme.py::test_shell_lines_run[docs/studies.md:* .venv/bin/h4pin atlas --x -0.2 0.2 '
      '21 --y -0.2 0.2 21 --out atlas.nc --quiet]'),
     ('tests/test_readme.py::test_shell_lines_run[docs/motion.md:* .venv/bin/h4pin cycle --time 0.5 --'
