@@ -193,3 +193,11 @@ def test_performance_text_agrees_with_its_table():
     assert float(modes) == pytest.approx(20, abs=0.5)  # "about 20 µs" in modes.md and motion.md
     for name in ("modes.md", "motion.md"):
         assert "about 30 µs" not in page(name) and "About 30 µs" not in page(name)
+
+
+def test_motor_atlas_time_per_point_agrees_with_the_grids_time():
+    m = find(r"Time: about ([\d.]+) ms a grid point on the 14-DoF delta .*? the (\d+) × (\d+) grid of the command "
+             r"above in ([\d.]+) s", page("mechanisms.md"))
+    per_point = float(m[4]) / (int(m[2]) * int(m[3])) * 1e3
+    assert abs(per_point - float(m[1])) <= 0.1, per_point
+    assert "--motor mot1_rod1=-0.3:0.3:21 --motor mot1_rod2=-0.3:0.3:21" in page("mechanisms.md")
