@@ -101,10 +101,7 @@ NEEDS = {
     ("docs/interop.md", "interop.toolbox()"): "toolbox_parallel_robots",
 }
 #: Blocks that continue the page's blocks before them, by (page, a fragment of the block): the reason.
-CONTINUES = {
-    ("docs/loaded.md", "five.compensate("): "docs/loaded.md is edited by its owner (the loaded robot's); its "
-                                            "compensation block continues the page's first block",
-}
+CONTINUES: dict = {}
 
 
 def listed(table: dict, b: Block):
