@@ -196,17 +196,22 @@ def frequency_map(ds: Any, path: str | Path) -> Path:
     ax = fig.subplots()
     x, y = ds.x.values * 1e3, ds.y.values * 1e3
     mesh = ax.pcolormesh(x, y, ds.first_frequency.values, shading="nearest", cmap="viridis")
-    reach = (ds.status.values == verdicts.OK).astype(float)
-    if 0 < reach.sum() < reach.size and len(x) > 1 and len(y) > 1:
-        ax.contour(x, y, reach, levels=[0.5], colors="k", linewidths=1.2)
-    fig.colorbar(mesh, ax=ax).set_label("first natural frequency [Hz]")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_aspect("equal")
+    _map_frame(fig, ax, x, y, mesh, ds.status.values == verdicts.OK, "first natural frequency [Hz]")
     payload = ds.attrs.get("payload_kg", 0.0)
     ax.set_title(f"H4 first natural frequency, z = {ds.attrs['z'] * 1e3:.0f} mm, theta = {ds.attrs['theta']:.2f} rad"
                  + (f", payload {payload:g} kg" if payload else ""), fontsize=9)
     return save_figure(fig, path, dpi=110)
+
+
+def _map_frame(fig: Any, ax: Any, x: np.ndarray, y: np.ndarray, mesh: Any, ok: np.ndarray, label: str) -> None:
+    """An x-y map's frame: the edge of the points ``ok`` (a black line), the colour bar, mm axes."""
+    ok = ok.astype(float)
+    if 0 < ok.sum() < ok.size and len(x) > 1 and len(y) > 1:
+        ax.contour(x, y, ok, levels=[0.5], colors="k", linewidths=1.2)
+    fig.colorbar(mesh, ax=ax).set_label(label)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_aspect("equal")
 
 
 def frequency_pareto(par: dict[str, np.ndarray], path: str | Path) -> Path:
@@ -366,13 +371,7 @@ def sag_map(ds: Any, path: str | Path) -> Path:
     mesh = ax.pcolormesh(x, y, ds.sag_norm.values * 1e6, shading="nearest", cmap="viridis")
     xx, yy = np.meshgrid(x, y)
     ax.quiver(xx, yy, ds.sag.values[..., 0], ds.sag.values[..., 1], color="w", width=0.004)
-    ok = (ds.status.values == 0).astype(float)
-    if 0 < ok.sum() < ok.size and len(x) > 1 and len(y) > 1:
-        ax.contour(x, y, ok, levels=[0.5], colors="k", linewidths=1.2)
-    fig.colorbar(mesh, ax=ax).set_label("|sag of D| [um]")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_aspect("equal")
+    _map_frame(fig, ax, x, y, mesh, ds.status.values == 0, "|sag of D| [um]")
     payload = ds.attrs.get("payload_kg", 0.0)
     ax.set_title(f"H4 sag under its weight{f' and {payload:g} kg at D' if payload else ''}, "
                  f"z = {ds.attrs['z'] * 1e3:.0f} mm", fontsize=9)

@@ -186,6 +186,24 @@ def close(mech: Any, start: np.ndarray, held: Sequence[str], tol: float, iterati
     return q
 
 
+def closure_rows(mech: Any, model: Any, data: Any, q: np.ndarray, length: float = 1.0
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(c (m,), A (m, nv))``: the closures' residuals (translations over ``length``) and the
+    couplings', and their Jacobian, at q (Pinocchio's joint Jacobians computed in ``data`` at q)."""
+    res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
+    for cm in mech.constraint_models:
+        r, jac, _ = closure_step(model, data, cm)
+        w = np.ones(len(r))
+        w[:3] = 1.0 / length
+        res.append(r * w)
+        rows.append(jac * w[:, None])
+    for c in mech.couplings:
+        r, row = c.residual_row(model, q)
+        res.append(np.array([r]))
+        rows.append(row[None])
+    return np.concatenate(res), np.vstack(rows)
+
+
 def closure_step(model: pin.Model, d: pin.Data, cm: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """A closure's residual, its Jacobian (rows, nv) and its error: world position gap for a
     3-D closure; ``log6`` of the relative placement (frame 1's axes) for a 6-D one."""

@@ -28,7 +28,7 @@ from h4pin import _jit, limits
 from h4pin.errors import H4Error, ParameterError, located
 from h4pin.inputs import real_array
 from h4pin.mechanism import compiled, engine
-from h4pin.mechanism.payload import Payload
+from h4pin.mechanism.payload import at_frame
 
 METHODS = ("auto", "compiled", "pinocchio")
 GATE = _jit.Gate("generic mechanism path", compiled.batch, step="mechanism")
@@ -180,13 +180,7 @@ def payload_inertia(model: pin.Model, payload: Any) -> tuple[int, pin.Inertia] |
     """``(joint id, inertia in that joint's frame)`` of ``(frame, h4pin.mechanism.Payload)``."""
     if payload is None:
         return None
-    try:
-        frame, body = payload
-    except (TypeError, ValueError):
-        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
-    if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
-        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}")
-    f = model.frames[model.getFrameId(frame)]
+    _, body, f = at_frame(model, payload)
     inertia = pin.Inertia(float(body.mass), np.asarray(body.com, dtype=float), np.asarray(body.inertia, dtype=float))
     return int(f.parentJoint), f.placement.act(inertia)
 

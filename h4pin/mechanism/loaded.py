@@ -51,7 +51,7 @@ from h4pin.mechanism import assembly, engine
 from h4pin.mechanism.arguments import checked_springs, outputs_of
 from h4pin.mechanism.batch import configurations
 from h4pin.mechanism.engine import UnrestrainedMotionError
-from h4pin.mechanism.payload import Payload
+from h4pin.mechanism.payload import at_frame
 
 #: Central-difference step of the tangent stiffness (rad, or this times the length scale).
 FD_STEP = 1e-6
@@ -119,16 +119,10 @@ class Loads:
             f = model.frames[model.getFrameId(frame)]
             points.append((int(f.parentJoint), f.placement, _wrench(value, f"loads[{frame!r}]")))
         if payload is not None:
-            try:
-                frame, body = payload
-            except (TypeError, ValueError):
-                raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
-            if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
-                raise ParameterError(f"payload: (frame name of the model, h4pin.mechanism.Payload), got {payload!r}")
+            _, body, f = at_frame(model, payload)
             if not gravity:
                 raise ParameterError("payload: its weight acts only with gravity=True (a payload changes no "
                                      "static load without it)")
-            f = model.frames[model.getFrameId(frame)]
             at = f.placement * pin.SE3(np.eye(3), np.asarray(body.com, float))
             points.append((int(f.parentJoint), at, np.r_[body.mass * model.gravity.linear, np.zeros(3)]))
         if gravity and not np.any(model.gravity.linear):
@@ -187,18 +181,7 @@ class Problem:
         model, d = self.model, self.mech.data
         if kinematics:
             pin.computeJointJacobians(model, d, q)
-        res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
-        for cm in self.mech.constraint_models:
-            r, jac, _ = assembly.closure_step(model, d, cm)
-            w = np.ones(len(r))
-            w[:3] = 1.0 / self.length
-            res.append(r * w)
-            rows.append(jac * w[:, None])
-        for c in self.mech.couplings:
-            r, row = c.residual_row(model, q)
-            res.append(np.array([r]))
-            rows.append(row[None])
-        return np.concatenate(res), np.vstack(rows)
+        return assembly.closure_rows(self.mech, model, d, q, self.length)
 
     def gradient(self, q: np.ndarray, s: float, mu: np.ndarray) -> np.ndarray:
         """``R + Aᵀ μ`` (nv,) at q."""

@@ -206,25 +206,13 @@ class Measurements:
 
     def to_npz(self, path: str | Path) -> Path:
         """Write the arrays as ``.npz`` (module docstring), atomically."""
-        import os
-        import tempfile
-
-        from h4pin.files import check_output
+        from h4pin.files import check_output, write_atomic
 
         path = check_output(path, "path", suffixes=(".npz",))
         arrays = {"configurations" if self.motors is None else "motors": self.commands}
         arrays.update({f"points/{f}": p for f, p in self.points.items()})
         arrays.update({f"loads/{f}": w for f, w in (self.loads or {}).items()})
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
-        os.close(fd)
-        try:
-            np.savez(tmp, **arrays)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+        return write_atomic(path, lambda tmp: np.savez(tmp, **arrays), suffix=".npz")
 
     @classmethod
     def from_npz(cls, path: str | Path) -> Measurements:

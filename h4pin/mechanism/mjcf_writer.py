@@ -392,15 +392,9 @@ def _keyframe(mujoco: Any, s: Any, values: Mapping[str, float]) -> None:
 
 def _payload(s: Any, mech: Any, bodies: dict[int, Any], payload: Any) -> None:
     """A body ``payload`` fixed at the payload's frame: its mass, centre of mass and inertia."""
-    from h4pin.mechanism.payload import Payload
+    from h4pin.mechanism.payload import at_frame
 
-    try:
-        frame, body = payload
-    except (TypeError, ValueError):
-        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
-    if not isinstance(body, Payload) or not isinstance(frame, str) or not mech.model.existFrame(frame):
-        raise ParameterError(f"payload: (frame name of the model, h4pin.mechanism.Payload), got {payload!r}")
-    f = mech.model.frames[mech.model.getFrameId(frame)]
+    _, body, f = at_frame(mech.model, payload)
     b = bodies[int(f.parentJoint)].add_body()
     b.name, b.pos, b.quat = "payload", floats(f.placement.translation), quaternion(f.placement.rotation)
     if body.mass > 0:

@@ -74,3 +74,16 @@ class Payload:
 
 
 __all__ = ["Payload"]
+
+
+def at_frame(model: pin.Model, payload: Any) -> tuple[str, Payload, Any]:
+    """``(frame name, Payload, the model's frame)`` of a ``(frame, Payload)`` argument, checked: a
+    frame of the model and a :class:`Payload`, else a :class:`ParameterError` naming what is
+    expected."""
+    try:
+        frame, body = payload
+    except (TypeError, ValueError):
+        raise ParameterError(f"payload: (frame name, h4pin.mechanism.Payload), got {payload!r}") from None
+    if not isinstance(body, Payload) or not isinstance(frame, str) or not model.existFrame(frame):
+        raise ParameterError(f"payload: (frame name of the model, h4pin.mechanism.Payload), got {payload!r}")
+    return frame, body, model.frames[model.getFrameId(frame)]

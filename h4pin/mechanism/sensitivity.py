@@ -52,19 +52,7 @@ class Sensitivity:
         pin.computeJointJacobians(model, d, q)
         pin.updateFramePlacements(model, d)
         world = np.array([d.oMf[f].act(rob.markers[n]) for f, n in zip(self.frames, self.meas.markers, strict=True)])
-        res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
-        length = 1.0 if eq is None else eq.problem.length
-        for cm in rob.mech.constraint_models:
-            r, jac, _ = assembly.closure_step(model, d, cm)
-            w = np.ones(len(r))
-            w[:3] = 1.0 / length
-            res.append(r * w)
-            rows.append(jac * w[:, None])
-        for c in rob.mech.couplings:
-            r, row = c.residual_row(model, q)
-            res.append(np.array([r]))
-            rows.append(row[None])
-        c, a = np.concatenate(res), np.vstack(rows)
+        c, a = assembly.closure_rows(rob.mech, model, d, q, 1.0 if eq is None else eq.problem.length)
         if eq is None:
             return world, c, None
         p = eq.problem
@@ -210,16 +198,7 @@ class Sensitivity:
 
         d = model.createData()
         pin.computeJointJacobians(model, d, q)
-        res, rows = [np.zeros(0)], [np.zeros((0, model.nv))]
-        for cm in rob.mech.constraint_models:
-            r, jac, _ = assembly.closure_step(model, d, cm)
-            res.append(r)
-            rows.append(jac)
-        for c in rob.mech.couplings:
-            r, row = c.residual_row(model, q)
-            res.append(np.array([r]))
-            rows.append(row[None])
-        return np.concatenate(res), np.vstack(rows)
+        return assembly.closure_rows(rob.mech, model, d, q)
 
     def _force_derivative(self, rob: Any, p: Any, eq: Any) -> np.ndarray:
         """``∂(R + Aᵀμ)/∂p`` (nv,) at the equilibrium of a spring's (log) stiffness or a beam's
