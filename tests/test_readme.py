@@ -37,6 +37,8 @@ rules, so that a page can be rewritten without touching this file:
 
 from __future__ import annotations
 
+import ast
+import importlib.util
 import os
 import re
 import shlex
@@ -96,7 +98,12 @@ NOT_RUN = {
     ("docs/interop.md", "v.initViewer()"): "starts meshcat's own server (meshcat.Visualizer()) and leaves it "
                                            "running, as an interactive session does",
 }
-#: Blocks of an optional package, by (page, a fragment of the block): the module; skipped without it.
+#: The packages of h4pin's optional extras (pyproject.toml): a block that imports one is skipped
+#: where it is not installed (the core install: CI's oldest-Pinocchio run); any other import runs.
+OPTIONAL = frozenset({"mujoco", "example_robot_data", "robot_descriptions", "toolbox_parallel_robots", "yaml",
+                      "xarray", "zarr", "dask", "distributed", "h5netcdf", "h5py", "sphinx"})
+#: Blocks of an optional package they do not import, by (page, a fragment of the block): the module;
+#: skipped without it (a block's own imports are read from it: :func:`imported`).
 NEEDS = {
     ("docs/interop.md", "interop.toolbox()"): "toolbox_parallel_robots",
 }
@@ -107,6 +114,17 @@ CONTINUES: dict = {}
 def listed(table: dict, b: Block):
     """The value of table for block b (a key whose fragment is in the block), or None."""
     return next((v for (page, fragment), v in table.items() if page == b.page and fragment in b.text), None)
+
+
+def imported(b: Block) -> list[str]:
+    """The top-level packages a block imports (``import a.b``, ``from a.b import c``: ``a``)."""
+    names = []
+    for node in ast.walk(ast.parse(b.text)):
+        if isinstance(node, ast.Import):
+            names += [alias.name.split(".")[0] for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.append(node.module.split(".")[0])
+    return sorted(set(names))
 
 
 def block_id(b: Block) -> str:
@@ -229,8 +247,9 @@ def test_python_block_runs_alone(block, tmp_path, monkeypatch, no_process_left):
 
     if (reason := listed(NOT_RUN, block)) is not None:
         pytest.skip(f"not run: {reason}")
-    if (module := listed(NEEDS, block)) is not None:
-        pytest.importorskip(module, reason=f"needs {module}, not installed here")
+    for module in (*imported(block), *filter(None, [listed(NEEDS, block)])):
+        if module in OPTIONAL and importlib.util.find_spec(module) is None:
+            pytest.skip(f"needs {module} (an optional extra), not installed here")
     before = [b for b in PYTHON if b.page == block.page and b.line < block.line] if listed(CONTINUES, block) else []
     monkeypatch.chdir(tmp_path)
     (tmp_path / "tests").symlink_to(ROOT / "tests", target_is_directory=True)

@@ -395,6 +395,7 @@ def _load(path: Path) -> tuple[Any, pin.Model, list[Any], dict[int, int]]:
     from its joint ids to the split model's."""
     from h4pin.extras import MissingExtraError, require
 
+    check_files(path)  # first: a FIFO or a device is refused whatever is installed
     reader = getattr(pin, "buildModelAndLegacyConstraintsFromMJCF", None)
     if reader is None:
         raise MissingExtraError(f"Mechanism.from_mjcf needs Pinocchio >= 4 (its MJCF reader's closures); "
@@ -402,7 +403,6 @@ def _load(path: Path) -> tuple[Any, pin.Model, list[Any], dict[int, int]]:
     require("mujoco", extra="mujoco", what="Mechanism.from_mjcf")
     import mujoco
 
-    check_files(path)
     try:
         mj = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:  # MuJoCo's reader raises ValueError with its own message

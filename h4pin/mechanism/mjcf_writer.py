@@ -481,7 +481,6 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
         UnsupportedFeatureError: a joint MuJoCo has no counterpart of, a ball or free joint with
             several stiffnesses, a coupling MuJoCo cannot state.
     """
-    mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
     model = mech.model
     stiff = _spring_values(model, springs, mech.beam_springs)
     sites, solref, solimp = _check_spec_options(sites, name, solref, solimp)
@@ -489,6 +488,7 @@ def spec(mech: Any, springs: Mapping[Any, Any], q: Any = None, *, locked: Iterab
     for frame in sites:
         engine.frame_id(model, frame, what="sites")
     damping, timestep = check_settings(damping, timestep)
+    mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)  # after the values: a bad one is named first
     q = _configuration(mech, q)
     solref = (2.0 * float(timestep), 1.0) if solref is None else solref
     s = mujoco.MjSpec()
@@ -520,8 +520,8 @@ def to_xml(mech: Any, springs: Mapping[Any, Any], q: Any = None, **options: Any)
     """MJCF text of :func:`spec` (same arguments), compiled and written by MuJoCo to 17
     significant digits, after two comment lines: the licence, and what wrote it."""
     check_options(options)
-    mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
     s = spec(mech, springs, q, **options)
+    mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
     s.compile()
     with full_precision(mujoco):
         text = s.to_xml()
