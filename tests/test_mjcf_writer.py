@@ -91,6 +91,13 @@ def test_static_displacement_equals_the_compliance(case, tmp_path):
     mech, q, springs = _mechanism(robot, beams)
     C = mech.compliance(q, springs, [FrameOutput(frame, reference=pin.LOCAL_WORLD_ALIGNED)])[:3, :3]
     force = DIRECTION * DISPLACEMENT / np.linalg.norm(C @ DIRECTION)
+    if case == "robot_delta" and mw.version(mujoco.__version__) < mw.version("3.10"):
+        # MuJoCo 3.2.5 to 3.9 step the file once from qpos0 as they compile it; the delta's grams at
+        # 1e-5 s pass their limit there (3.2.5 to 3.9.0 checked): refused in one line, nothing written.
+        with pytest.raises(UnsupportedFeatureError, match="steps the model once from qpos0.*MuJoCo >= 3.10"):
+            mech.to_mjcf(tmp_path / f"{case}.xml", springs, q, sites=[frame], timestep=dt)
+        assert not list(tmp_path.iterdir())
+        return
     path = mech.to_mjcf(tmp_path / f"{case}.xml", springs, q, sites=[frame], timestep=dt)
     got, want = _settled(path, frame, force), C @ force
     error = np.linalg.norm(got - want) / np.linalg.norm(want)

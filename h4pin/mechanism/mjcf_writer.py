@@ -377,10 +377,30 @@ def _couplings(mujoco: Any, s: Any, mech: Any, locked: set[int], solref: Any, so
         e.solref, e.solimp = floats(solref), floats(solimp)
 
 
+def compile_spec(mujoco: Any, s: Any) -> Any:
+    """``s.compile()``; MuJoCo 3.2.5 to 3.9 step a model once from ``qpos0`` as they compile it and
+    refuse it when the accelerations there pass their limit: the file's ``qpos0`` is the drawn
+    pose, where the loops are open, and its closures' forces there grow as ``1 / timestep^2``.
+
+    Raises:
+        UnsupportedFeatureError: that refusal, with what to change (MuJoCo's message in it).
+    """
+    try:
+        return s.compile()
+    except ValueError as exc:
+        if "QACC" not in str(exc):
+            raise
+        raise UnsupportedFeatureError(
+            f"MuJoCo {mujoco.__version__} refuses the elastic file: its compiler steps the model once from qpos0, "
+            "the drawn pose where the loops are open, and the closures' forces there (stiff as 1/timestep^2) pass its "
+            f"limit ({' '.join(str(exc).split())}); use a larger timestep, or MuJoCo >= 3.10 (it does not step "
+            "the model)") from None
+
+
 def _keyframe(mujoco: Any, s: Any, values: Mapping[str, float]) -> None:
     """Keyframe :data:`KEYFRAME`: hinges and slides at their values in ``q``, balls and free joints
     at their drawn pose (``q`` too)."""
-    m = s.compile()
+    m = compile_spec(mujoco, s)
     qpos = np.array(m.qpos0)
     for i in range(m.njnt):
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i)
@@ -522,7 +542,7 @@ def to_xml(mech: Any, springs: Mapping[Any, Any], q: Any = None, **options: Any)
     check_options(options)
     s = spec(mech, springs, q, **options)
     mujoco = require_mujoco(MIN_MUJOCO_ELASTIC, _WHAT)
-    s.compile()
+    compile_spec(mujoco, s)
     with full_precision(mujoco):
         text = s.to_xml()
     note = ("<!-- SPDX-License-Identifier: Apache-2.0 -->\n"
@@ -553,5 +573,5 @@ def write(mech: Any, path: str | os.PathLike[str], springs: Mapping[Any, Any], q
 
 __all__ = ["ARMATURE_STEPS", "CHAIN_MASS", "CLOSED_TOL", "DAMPING", "ELASTIC_SOLIMP", "ELASTIC_SOLREF",
            "ELASTIC_TIMESTEP", "KEYFRAME", "MIN_MUJOCO_ELASTIC", "OPTIONS", "angle", "check_options", "check_settings",
-           "floats", "full_precision", "is_free", "is_prismatic", "is_revolute", "motion", "quaternion",
+           "compile_spec", "floats", "full_precision", "is_free", "is_prismatic", "is_revolute", "motion", "quaternion",
            "require_mujoco", "set_spring", "spec", "to_xml", "version", "write"]
