@@ -25,7 +25,7 @@ import h4pin
 from h4pin.errors import ConvergenceError, MechanismWarning, ParameterError
 from h4pin.kinematics.closed_form import centre_pose
 from h4pin.limits import TooLargeError
-from h4pin.mechanism import Beam, Mechanism, Payload
+from h4pin.mechanism import Beam, JointCoupling, Mechanism, Payload
 from h4pin.mechanism.loaded import LimitLoadError
 
 ROBOTS = Path(__file__).resolve().parent / "robots"
@@ -130,6 +130,90 @@ def test_the_tangent_compliance_is_the_derivative_of_the_equilibrium(five_bar):
     np.testing.assert_allclose(tangent, fd, rtol=0, atol=1e-6 * np.abs(fd).max())
     linear = mech.compliance(q, springs, ["effector"])
     assert np.abs(tangent - linear).max() > 1e-3 * np.abs(linear).max()
+
+
+def _coupled_chain() -> tuple[Mechanism, np.ndarray, dict[str, float]]:
+    """Four hinges about y in a horizontal chain, j2 held to a cubic of j1 (a coupling whose row
+    bends with q), the last link's end a frame ``tip``."""
+    model = pin.Model()
+    parent = 0
+    for i in (1, 2, 3, 4):
+        parent = model.addJoint(parent, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.2, 0.0, 0.0])), f"j{i}")
+        body = pin.Inertia(0.5, np.array([0.1, 0.0, 0.0]), np.eye(3) * 1e-3)
+        model.appendBodyToJoint(parent, body, pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", parent, 0, pin.SE3(np.eye(3), np.array([0.2, 0.0, 0.0])), pin.FrameType.OP_FRAME))
+    mech = Mechanism(model, couplings=[JointCoupling("j2", "j1", (0.05, 1.5, -2.0, 4.0), 0.0, 0.1)])
+    q = mech.assemble(np.array([0.3, 0.0, -0.2, 0.1]), fixed=["j1"])
+    return mech, q, {"j1": 40.0, "j2": 40.0, "j3": 25.0, "j4": 10.0}
+
+
+@pytest.mark.parametrize(("robot", "loads"), [
+    ("5bar_linkage_iso3d", {"effector": [5.0, -3.0, 8.0, 0.2, 0.1, -0.3]}),
+    ("5bar with a beam", {"effector": [5.0, -3.0, 8.0, 0.2, 0.1, -0.3]}),
+    ("robot_delta", {"eff": [1.0, 2.0, -3.0, 0.01, 0.0, 0.02]}),
+    ("cassie_like", {}),
+    ("toggle", {"left_tip": [0.0, -40.0, 0.0, 0.0, 0.0, 0.0]}),
+    ("coupled chain", {"tip": [0.0, 0.0, -3.0, 0.0, 0.2, 0.0]}),
+])
+def test_the_closed_form_tangent_is_the_difference_of_the_forces(robot, loads):
+    """At a loaded equilibrium under gravity, the tangent stiffness in closed form (dead loads and
+    3-D closures as forces at body points, gravity's derivatives, a coupling's curvature, the 6-D
+    closures' own differences) equals central differences of the generalised forces: to 1e-6 of
+    its geometric part (H - K), which stands far above the differences' round-off."""
+    if robot == "toggle":
+        mech, springs = _toggle(0.3, 0.1), {"left_axial": 1e4, "right_axial": 1e4, "left_pin": 1.0, "right_pin": 1.0}
+        q = mech.assemble()
+    elif robot == "coupled chain":
+        mech, q, springs = _coupled_chain()
+    elif robot == "5bar with a beam":
+        mech, _, springs = _corpus("5bar_linkage_iso3d")
+        mech = mech.with_beams({"part_3": Beam.tube(0.025, 0.002, E=70e9, G=26e9)})
+        q = mech.assemble()
+    else:
+        mech, q, springs = _corpus(robot)
+    eq = mech.equilibrium(q, springs, loads, gravity=robot != "toggle")
+    p = eq.problem
+    assert p._ancestors is not None  # one-coordinate joints: the closed form
+    exact = p.tangent_exact(eq.q, eq.load_factor, eq.mu)
+    fd = p.tangent_fd(eq.q, eq.load_factor, eq.mu)
+    geometric = fd - np.diag(p.k * p.free)
+    assert np.abs(geometric).max() > 1e-6 * np.abs(p.k).max()  # far above the differences' round-off (~1e-9 K)
+    np.testing.assert_allclose(exact, fd, rtol=0, atol=1e-6 * np.abs(geometric).max())
+
+
+@pytest.mark.parametrize("joint", ["ball", "free"])
+def test_a_ball_or_free_joints_tangent_is_in_closed_form_too(joint):
+    """A rod on a ball joint (or a free joint, its six coordinates sprung) with a hinge below it,
+    tilted and loaded: the closed form (the joint's own coordinates turning its columns, its
+    spring's curvature by differences) equals central differences of the generalised forces."""
+    model = pin.Model()
+    kind = pin.JointModelSpherical() if joint == "ball" else pin.JointModelFreeFlyer()
+    j = model.addJoint(0, kind, pin.SE3.Identity(), "root")
+    model.appendBodyToJoint(j, pin.Inertia(1.0, np.array([0.0, 0.0, 0.3]), np.eye(3) * 1e-3), pin.SE3.Identity())
+    h = model.addJoint(j, pin.JointModelRX(), pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.6])), "hinge")
+    model.appendBodyToJoint(h, pin.Inertia(0.5, np.array([0.0, 0.1, 0.2]), np.eye(3) * 1e-3), pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", h, 0, pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.4])), pin.FrameType.OP_FRAME))
+    mech = Mechanism(model)
+    q = pin.integrate(model, pin.neutral(model), np.r_[np.zeros(model.nv - 4), 0.3, -0.2, 0.1, 0.4])
+    eq = mech.equilibrium(q, {"root": 300.0, "hinge": 40.0}, {"tip": [2.0, -1.0, 0.5, 0.1, 0.0, 0.2]}, gravity=True)
+    p = eq.problem
+    assert p._ancestors is not None and p._curved.sum() == model.joints[j].nv
+    exact, fd = p.tangent_exact(eq.q, 1.0, eq.mu), p.tangent_fd(eq.q, 1.0, eq.mu)
+    geometric = fd - np.diag(p.k * p.free)
+    assert np.abs(geometric).max() > 1e-3 * np.abs(p.k).max()
+    np.testing.assert_allclose(exact, fd, rtol=0, atol=1e-6 * np.abs(geometric).max())
+
+
+def test_a_joint_without_a_closed_form_takes_the_tangent_by_differences():
+    """A ZYX-Euler ball joint (its columns depend on its angles): the tangent is :meth:`tangent_fd`'s."""
+    model = pin.Model()
+    j = model.addJoint(0, pin.JointModelSphericalZYX(), pin.SE3.Identity(), "ball")
+    model.appendBodyToJoint(j, pin.Inertia(1.0, np.array([0.0, 0.0, 0.3]), np.eye(3) * 1e-3), pin.SE3.Identity())
+    mech = Mechanism(model)
+    eq = mech.equilibrium(pin.neutral(model), {"ball": 200.0}, gravity=True)
+    p = eq.problem
+    assert p._ancestors is None
+    np.testing.assert_array_equal(p.tangent(eq.q, 1.0, eq.mu), p.tangent_fd(eq.q, 1.0, eq.mu))
 
 
 def test_a_batch_gives_each_configurations_equilibrium(five_bar):

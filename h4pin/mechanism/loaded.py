@@ -18,9 +18,17 @@ their Jacobian, ``μ`` the closure and coupling forces.
 
 Newton's method on that system takes the *tangent* stiffness ``H = ∂(R + Aᵀμ)/∂q``: the springs'
 ``K``, and the geometric terms of the loads, gravity and closure forces, which make the stiffness
-depend on the load (and vanish without one). Here ``H`` is the central difference of the exact
-generalised forces (Pinocchio's Jacobians) over each free coordinate, which is exact to about
-1e-9 relative. On the admissible motions ``dq = N z`` (the null space of ``A`` and the locked
+depend on the load (and vanish without one). For revolute, prismatic, ball and free joints
+(:func:`closed_form_joint`), ``H`` is in closed form (:meth:`Problem.tangent_exact`): a dead
+load and a 3-D closure's force are forces at body points, whose generalised force ``S_i · F``
+changes as a joint above turns the column ``S_i`` and moves the point; gravity's derivative is
+Pinocchio's; a coupling's row bends with its polynomial's curvature; a 6-D closure's force is a
+wrench at its frame, turned with it and with ``Jlog6`` of the relative placement (whose change in
+six local directions, and a ball or free joint's spring, are central differences of their own,
+without kinematics). For other joints ``H`` is the
+central difference of the exact generalised forces over each free coordinate
+(:meth:`Problem.tangent_fd`, exact to about 1e-9 relative). On the admissible motions
+``dq = N z`` (the null space of ``A`` and the locked
 joints), ``Hr = Nᵀ H N``: the equilibrium is stable where ``Hr`` is positive definite, and the
 tangent compliance of outputs is ``J N Hr⁻¹ Nᵀ Jᵀ`` (what a small extra wrench does there; the
 engine's linear compliance at zero load).
@@ -132,6 +140,21 @@ class Loads:
         return cls(tuple(points), gravity)
 
 
+#: The joints of several coordinates whose world Jacobian columns are constant local ones carried
+#: by their placement, moved by ``q ⊕ v = q exp(v)`` (as the one-coordinate revolute and prismatic
+#: joints): an ancestor's (or the joint's own) coordinate j turns column i as ``S_j × S_i``, which
+#: gives the tangent stiffness in closed form (:meth:`Problem.tangent_exact`).
+CLOSED_FORM_JOINTS = frozenset({"JointModelFreeFlyer", "JointModelSpherical"})
+
+
+def closed_form_joint(jm: Any) -> bool:
+    """A one-coordinate revolute or prismatic joint (any axis, bounded or not), a ball or a free
+    joint (:data:`CLOSED_FORM_JOINTS`)."""
+    name = jm.shortname()
+    return name in CLOSED_FORM_JOINTS or (jm.nv == 1 and name.startswith(("JointModelR", "JointModelP"))
+                                          and not name.startswith("JointModelPlanar"))
+
+
 class Problem:
     """One loaded mechanism: the model, its closures and couplings, the springs and their rest
     positions, the free coordinates, the loads, and the length scale of its translations.
@@ -158,13 +181,28 @@ class Problem:
         self.length = engine.length_scale(model, d)
         self.col = np.where(np.linalg.norm(np.reshape(d.J, (6, model.nv))[3:], axis=0) == 0.0, self.length, 1.0)
         self._last: tuple[Any, Any] | None = None  # the last reduced tangent (its state, its value)
+        #: ``[j, i]``: coordinate j turns coordinate i's Jacobian column (j's joint is an ancestor
+        #: of i's, or the same ball or free joint); None: a joint whose column is not a constant
+        #: local one (:data:`CLOSED_FORM_JOINTS`), the tangent is taken by differences.
+        self._ancestors: np.ndarray | None = None
+        #: The coordinates of ball and free joints with a spring (their spring's tangent by differences).
+        self._curved = np.zeros(model.nv, dtype=bool)
+        if all(closed_form_joint(model.joints[j]) for j in range(1, model.njoints)):
+            self._ancestors = np.zeros((model.nv, model.nv))
+            for j in range(1, model.njoints):
+                jm = model.joints[j]
+                cols = slice(jm.idx_v, jm.idx_v + jm.nv)
+                for a in list(model.supports[j])[1:]:
+                    am = model.joints[a]
+                    self._ancestors[am.idx_v:am.idx_v + am.nv, cols] = 1.0
+                if jm.nv > 1:
+                    self._curved[cols] = np.any(self.k[cols] != 0.0)
 
     # -------------------------------------------------------------- evaluations
     def forces(self, q: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
         """``(R (nv,), the load part's derivative in s (nv,))`` at q (module docstring)."""
         model, d = self.model, self.mech.data
-        dv = pin.difference(model, self.spring_rest, q)
-        spring = pin.dDifference(model, self.spring_rest, q, pin.ARG1).T @ (self.k * dv)
+        spring = self._springs(q)
         pin.computeJointJacobians(model, d, q)
         load = np.zeros(model.nv)
         for joint, place, w in self.loads.points:
@@ -190,17 +228,112 @@ class Problem:
         return r + a.T @ mu
 
     def tangent(self, q: np.ndarray, s: float, mu: np.ndarray) -> np.ndarray:
-        """``H`` (nv, nv) at q, μ fixed: the central difference of :meth:`gradient` along each free
-        coordinate (columns of locked coordinates zero)."""
+        """``H`` (nv, nv) at q, μ fixed (columns of locked coordinates zero): in closed form
+        (:meth:`tangent_exact`) where every joint has one coordinate, else :meth:`tangent_fd`."""
+        return self.tangent_exact(q, s, mu) if self._ancestors is not None else self.tangent_fd(q, s, mu)
+
+    def tangent_fd(self, q: np.ndarray, s: float, mu: np.ndarray,
+                   part: Any = None, columns: np.ndarray | None = None) -> np.ndarray:
+        """``H`` (nv, nv) at q, μ fixed: the central difference of :meth:`gradient` (or of
+        ``part(q)``) along each free coordinate (or each of ``columns``; the others zero)."""
         model = self.model
+        part = part or (lambda x: self.gradient(x, s, mu))
         h = np.zeros((model.nv, model.nv))
-        for j in np.flatnonzero(self.free):
+        for j in np.flatnonzero(self.free if columns is None else self.free & columns):
             step = np.zeros(model.nv)
             step[j] = FD_STEP * self.col[j]
-            plus = self.gradient(pin.integrate(model, q, step), s, mu)
-            minus = self.gradient(pin.integrate(model, q, -step), s, mu)
-            h[:, j] = (plus - minus) / (2.0 * step[j])
+            h[:, j] = (part(pin.integrate(model, q, step)) - part(pin.integrate(model, q, -step))) / (2.0 * step[j])
         return h
+
+    def tangent_exact(self, q: np.ndarray, s: float, mu: np.ndarray) -> np.ndarray:
+        """``H`` at q for a model of :func:`closed_form_joint` joints: the springs' ``K`` (a ball
+        or free joint's by differences of the springs alone); the dead loads' and the 3-D
+        closures' forces (a force at a body point, :meth:`_dead`); gravity (Pinocchio's
+        derivatives); the couplings' curvature; the 6-D closures' wrenches (:meth:`_weld`)."""
+        model, d = self.model, self.mech.data
+        pin.computeJointJacobians(model, d, q)
+        h = np.diag(np.where(self._curved, 0.0, self.k))
+        if self._curved.any():  # a ball or free joint's spring: Dᵀ K d bends with q
+            h[:, self._curved] = self.tangent_fd(q, s, mu, part=self._springs, columns=self._curved)[:, self._curved]
+        load = np.zeros((model.nv, model.nv))
+        for joint, place, w in self.loads.points:
+            load -= self._dead(d, joint, (d.oMi[joint] * place).translation, w[:3], w[3:])
+        if self.loads.gravity:
+            load += pin.computeGeneralizedGravityDerivatives(model, d, q)
+        h += s * load
+        row, welds = 0, []
+        for cm in self.mech.constraint_models:
+            if cm.type == pin.ContactType.CONTACT_3D:
+                f = np.asarray(mu[row:row + 3]) / self.length
+                none = np.zeros(3)
+                h += self._dead(d, cm.joint2_id, (d.oMi[cm.joint2_id] * cm.joint2_placement).translation, f, none)
+                h -= self._dead(d, cm.joint1_id, (d.oMi[cm.joint1_id] * cm.joint1_placement).translation, f, none)
+                row += 3
+            else:
+                welds.append((cm, row))
+                row += 6
+        for c in self.mech.couplings:
+            if c.joint2 is not None:  # the row's -slope(q2): its derivative -mu curvature
+                j2 = model.joints[model.getJointId(c.joint2)]
+                u2 = q[j2.idx_q] - c.origin2
+                curve = sum(k * (k - 1) * a * u2 ** (k - 2) for k, a in enumerate(c.poly) if k > 1)
+                h[j2.idx_v, j2.idx_v] -= mu[row] * curve
+            row += 1
+        for cm, row in welds:
+            h += self._weld(d, cm, np.asarray(mu[row:row + 6]))
+        h[:, ~self.free] = 0.0
+        return h
+
+    def _springs(self, q: np.ndarray) -> np.ndarray:
+        """The springs' generalised force ``Dᵀ K d`` (nv,) at q."""
+        dv = pin.difference(self.model, self.spring_rest, q)
+        return pin.dDifference(self.model, self.spring_rest, q, pin.ARG1).T @ (self.k * dv)
+
+    def _weld(self, d: pin.Data, cm: Any, mu: np.ndarray) -> np.ndarray:
+        """``∂(Aᵀμ)/∂q`` (nv, nv) of a 6-D closure's rows (scaled as :meth:`constraints` scales
+        them), the joints' Jacobians computed in d. Its rows are ``Jlog6(rel) Ad(o2⁻¹) (J2 - J1)``
+        (``J_k`` the world columns of joint k's chain): ``Aᵀμ = (J2 - J1)ᵀ F``, F the world force
+        of the wrench ``λ = Jlog6(rel)ᵀ W μ`` at frame 2. F turns with frame 2 (``S_j ×* F``) and
+        with ``Jlog6`` along the relative motion ``Ad(o2⁻¹) (J2 - J1)``: its derivative in the six
+        local directions is a central difference of ``Jlog6`` alone."""
+        model = self.model
+        o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+        rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
+        wmu = mu * np.r_[np.full(3, 1.0 / self.length), np.ones(3)]
+        j1 = np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
+        j2 = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv))
+        jd = j2 - j1
+        star = o2.toDualActionMatrix()
+        f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
+        bend = np.zeros((6, 6))  # d(Jlog6(rel exp(e))ᵀ W μ)/de
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = FD_STEP
+            plus, minus = rel * pin.exp6(pin.Motion(e)), rel * pin.exp6(pin.Motion(-e))
+            bend[:, k] = (pin.Jlog6(plus) - pin.Jlog6(minus)).T @ wmu / (2.0 * FD_STEP)
+        turned = np.r_[-pin.skew(f) @ j2[3:], -pin.skew(n) @ j2[3:] - pin.skew(f) @ j2[:3]]  # S_j ×* F
+        dforce = turned + star @ bend @ o2.inverse().toActionMatrix() @ jd
+        return self._moved(d, jd, f, n) + jd.T @ dforce
+
+    def _moved(self, d: pin.Data, jac: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """``[i, j] = (S_j × S_i) · F`` where coordinate j turns column i (:attr:`_ancestors`):
+        S_i the columns of ``jac`` (6, nv), S_j the joints' world columns (``d.J``), F = [f; n]."""
+        all_ = np.reshape(d.J, (6, self.model.nv))
+        v, w = jac[:3], jac[3:]
+        sf = pin.skew(f)
+        return (v.T @ sf @ all_[3:] + w.T @ sf @ all_[:3] + w.T @ pin.skew(n) @ all_[3:]) * self._ancestors.T
+
+    def _dead(self, d: pin.Data, joint: int, p: np.ndarray, f: np.ndarray, m: np.ndarray) -> np.ndarray:
+        """``∂(Jᵀ w)/∂q`` (nv, nv) of a dead wrench ``w = [f; m]`` (world) at the point p (world)
+        of joint ``joint``'s body (J the point's LOCAL_WORLD_ALIGNED Jacobian), the joints'
+        Jacobians computed in d. With the joint's world-frame columns ``S_i = [v_i; ω_i]`` and
+        the wrench about the origin ``F = [f; p × f + m]``, ``(Jᵀw)_i = S_i · F``: joint j moves
+        S_i when it is an ancestor of i (``∂S_i/∂q_j = S_j × S_i``) and moves F through p
+        (``∂p/∂q_j = v_j + ω_j × p``)."""
+        jac = np.reshape(pin.getJointJacobian(self.model, d, joint, pin.WORLD), (6, self.model.nv))
+        v, w = jac[:3], jac[3:]
+        moved = self._moved(d, jac, f, pin.skew(p) @ f + m)  # F's moment about the origin, p × f + m
+        return moved - w.T @ pin.skew(f) @ (v - pin.skew(p) @ w)
 
     def reduced(self, q: np.ndarray, s: float, mu: np.ndarray, h: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -697,5 +830,5 @@ class UnderLoad:
         return compensate(self, targets, springs, loads, gravity, payload, locked, start, tol, iterations)
 
 
-__all__ = ["Compensation", "CriticalLoad", "Equilibrium", "LimitLoadError", "Loads", "Problem", "UnderLoad",
-           "compensate", "critical", "problem", "solve", "warm"]
+__all__ = ["CLOSED_FORM_JOINTS", "Compensation", "CriticalLoad", "Equilibrium", "LimitLoadError", "Loads", "Problem",
+           "UnderLoad", "closed_form_joint", "compensate", "critical", "problem", "solve", "warm"]
