@@ -181,6 +181,40 @@ def test_the_closed_form_tangent_is_the_difference_of_the_forces(robot, loads):
     np.testing.assert_allclose(exact, fd, rtol=0, atol=1e-6 * np.abs(geometric).max())
 
 
+@pytest.mark.parametrize(("robot", "loads"), [
+    ("5bar_linkage_iso3d", {"effector": [5.0, -3.0, 8.0, 0.2, 0.1, -0.3]}),
+    ("robot_delta", {"eff": [1.0, 2.0, -3.0, 0.01, 0.0, 0.02]}),
+    ("cassie_like", {}),
+])
+def test_a_moved_subtree_changes_the_forces_as_differences_of_the_placement_say(robot, loads):
+    """Problem.moved_subtree (a joint placement's change at the fixed configuration, calibration's
+    geometry partials) against central differences of the generalised forces with the placement
+    itself moved (``M exp6(h e)``), for every joint and the six local directions: 1e-6 of the
+    largest. The 6-D closures' frames sit on one side of some joints (the delta's, the leg's)."""
+    mech, q, springs = _corpus(robot)
+    eq = mech.equilibrium(q, springs, loads, gravity=True)
+    p, model = eq.problem, mech.model
+    step = 1e-6
+    for jp in range(1, model.njoints):
+        place = model.jointPlacements[jp].copy()
+        pin.forwardKinematics(model, p.mech.data, eq.q)
+        twists = (p.mech.data.oMi[int(model.parents[jp])] * place).toActionMatrix()
+        closed = p.moved_subtree(eq.q, eq.load_factor, eq.mu, jp, twists)
+        fd = np.zeros_like(closed)
+        try:
+            for a in range(6):
+                e = np.zeros(6)
+                e[a] = step
+                model.jointPlacements[jp] = place * pin.exp6(pin.Motion(e))
+                plus = p.gradient(eq.q, eq.load_factor, eq.mu)
+                model.jointPlacements[jp] = place * pin.exp6(pin.Motion(-e))
+                fd[:, a] = (plus - p.gradient(eq.q, eq.load_factor, eq.mu)) / (2 * step)
+        finally:
+            model.jointPlacements[jp] = place
+        np.testing.assert_allclose(closed, fd, rtol=0, atol=1e-6 * max(np.abs(fd).max(), 1.0),
+                                   err_msg=model.names[jp])
+
+
 @pytest.mark.parametrize("joint", ["ball", "free"])
 def test_a_ball_or_free_joints_tangent_is_in_closed_form_too(joint):
     """A rod on a ball joint (or a free joint, its six coordinates sprung) with a hinge below it,

@@ -155,6 +155,89 @@ def closed_form_joint(jm: Any) -> bool:
                                           and not name.startswith("JointModelPlanar"))
 
 
+def _cross_dot(twists: np.ndarray, jac: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``[i, a] = (V_a × S_i) · F`` (nv, k): the twists V_a (6, k) turning the columns S_i of
+    ``jac`` (6, nv), against the world force ``F = [f; n]``."""
+    sf = pin.skew(f)
+    v, w = jac[:3], jac[3:]
+    return v.T @ sf @ twists[3:] + w.T @ sf @ twists[:3] + w.T @ pin.skew(n) @ twists[3:]
+
+
+def _jlog6_bend(rel: pin.SE3, wmu: np.ndarray) -> np.ndarray:
+    """``d(Jlog6(rel exp(e))ᵀ W μ)/de`` (6, 6): central differences in the six local directions."""
+    bend = np.zeros((6, 6))
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = FD_STEP
+        plus, minus = rel * pin.exp6(pin.Motion(e)), rel * pin.exp6(pin.Motion(-e))
+        bend[:, k] = (pin.Jlog6(plus) - pin.Jlog6(minus)).T @ wmu / (2.0 * FD_STEP)
+    return bend
+
+
+def _moved(model: pin.Model, d: pin.Data, ancestors: np.ndarray, jac: np.ndarray, f: np.ndarray, n: np.ndarray
+           ) -> np.ndarray:
+    """``[i, j] = (S_j × S_i) · F`` where coordinate j turns column i (``ancestors``):
+    S_i the columns of ``jac`` (6, nv), S_j the joints' world columns (``d.J``), F = [f; n]."""
+    all_ = np.reshape(d.J, (6, model.nv))
+    v, w = jac[:3], jac[3:]
+    sf = pin.skew(f)
+    return (v.T @ sf @ all_[3:] + w.T @ sf @ all_[:3] + w.T @ pin.skew(n) @ all_[3:]) * ancestors.T
+
+
+def _dead(model: pin.Model, d: pin.Data, ancestors: np.ndarray, joint: int, p: np.ndarray, f: np.ndarray,
+          m: np.ndarray) -> np.ndarray:
+    """``∂(Jᵀ w)/∂q`` (nv, nv) of a dead wrench ``w = [f; m]`` (world) at the point p (world)
+    of joint ``joint``'s body (J the point's LOCAL_WORLD_ALIGNED Jacobian), the joints'
+    Jacobians computed in d. With the joint's world-frame columns ``S_i = [v_i; ω_i]`` and
+    the wrench about the origin ``F = [f; p × f + m]``, ``(Jᵀw)_i = S_i · F``: joint j moves
+    S_i when it is an ancestor of i (``∂S_i/∂q_j = S_j × S_i``) and moves F through p
+    (``∂p/∂q_j = v_j + ω_j × p``)."""
+    jac = np.reshape(pin.getJointJacobian(model, d, joint, pin.WORLD), (6, model.nv))
+    v, w = jac[:3], jac[3:]
+    moved = _moved(model, d, ancestors, jac, f, pin.skew(p) @ f + m)  # F's moment about the origin, p × f + m
+    return moved - w.T @ pin.skew(f) @ (v - pin.skew(p) @ w)
+
+
+def _weld(model: pin.Model, d: pin.Data, ancestors: np.ndarray, length: float, cm: Any, mu: np.ndarray) -> np.ndarray:
+    """``∂(Aᵀμ)/∂q`` (nv, nv) of a 6-D closure's rows (scaled as :meth:`Problem.constraints` scales
+    them), the joints' Jacobians computed in d. Its rows are ``Jlog6(rel) Ad(o2⁻¹) (J2 - J1)``
+    (``J_k`` the world columns of joint k's chain): ``Aᵀμ = (J2 - J1)ᵀ F``, F the world force
+    of the wrench ``λ = Jlog6(rel)ᵀ W μ`` at frame 2. F turns with frame 2 (``S_j ×* F``) and
+    with ``Jlog6`` along the relative motion ``Ad(o2⁻¹) (J2 - J1)``: its derivative in the six
+    local directions is a central difference of ``Jlog6`` alone."""
+    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+    rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
+    wmu = mu * np.r_[np.full(3, 1.0 / length), np.ones(3)]
+    j1 = np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
+    j2 = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv))
+    jd = j2 - j1
+    star = o2.toDualActionMatrix()
+    f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
+    turned = np.r_[-pin.skew(f) @ j2[3:], -pin.skew(n) @ j2[3:] - pin.skew(f) @ j2[:3]]  # S_j ×* F
+    dforce = turned + star @ _jlog6_bend(rel, wmu) @ o2.inverse().toActionMatrix() @ jd
+    return _moved(model, d, ancestors, jd, f, n) + jd.T @ dforce
+
+
+def _weld_moved(model: pin.Model, d: pin.Data, length: float, cm: Any, mu: np.ndarray, below: np.ndarray,
+                sub: np.ndarray, twists: np.ndarray) -> np.ndarray:
+    """:meth:`Problem.moved_subtree`'s term (nv, k) of a 6-D closure (:func:`_weld`'s wrench)."""
+    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+    rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
+    wmu = mu * np.r_[np.full(3, 1.0 / length), np.ones(3)]
+    jd = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv)) - \
+        np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
+    star = o2.toDualActionMatrix()
+    f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
+    out = sub[:, None] * _cross_dot(twists, jd, f, n)
+    dforce = np.zeros((6, twists.shape[1]))
+    if below[cm.joint2_id]:
+        dforce += np.r_[-pin.skew(f) @ twists[3:], -pin.skew(n) @ twists[3:] - pin.skew(f) @ twists[:3]]
+    side = float(below[cm.joint2_id]) - float(below[cm.joint1_id])
+    if side:
+        dforce += star @ _jlog6_bend(rel, wmu) @ o2.inverse().toActionMatrix() @ (side * twists)
+    return out + jd.T @ dforce
+
+
 class Problem:
     """One loaded mechanism: the model, its closures and couplings, the springs and their rest
     positions, the free coordinates, the loads, and the length scale of its translations.
@@ -257,7 +340,7 @@ class Problem:
             h[:, self._curved] = self.tangent_fd(q, s, mu, part=self._springs, columns=self._curved)[:, self._curved]
         load = np.zeros((model.nv, model.nv))
         for joint, place, w in self.loads.points:
-            load -= self._dead(d, joint, (d.oMi[joint] * place).translation, w[:3], w[3:])
+            load -= _dead(model, d, self._ancestors, joint, (d.oMi[joint] * place).translation, w[:3], w[3:])
         if self.loads.gravity:
             load += pin.computeGeneralizedGravityDerivatives(model, d, q)
         h += s * load
@@ -266,8 +349,9 @@ class Problem:
             if cm.type == pin.ContactType.CONTACT_3D:
                 f = np.asarray(mu[row:row + 3]) / self.length
                 none = np.zeros(3)
-                h += self._dead(d, cm.joint2_id, (d.oMi[cm.joint2_id] * cm.joint2_placement).translation, f, none)
-                h -= self._dead(d, cm.joint1_id, (d.oMi[cm.joint1_id] * cm.joint1_placement).translation, f, none)
+                for sign, joint, place in ((1.0, cm.joint2_id, cm.joint2_placement),
+                                           (-1.0, cm.joint1_id, cm.joint1_placement)):
+                    h += sign * _dead(model, d, self._ancestors, joint, (d.oMi[joint] * place).translation, f, none)
                 row += 3
             else:
                 welds.append((cm, row))
@@ -280,60 +364,55 @@ class Problem:
                 h[j2.idx_v, j2.idx_v] -= mu[row] * curve
             row += 1
         for cm, row in welds:
-            h += self._weld(d, cm, np.asarray(mu[row:row + 6]))
+            h += _weld(model, d, self._ancestors, self.length, cm, np.asarray(mu[row:row + 6]))
         h[:, ~self.free] = 0.0
         return h
+
+    def moved_subtree(self, q: np.ndarray, s: float, mu: np.ndarray, joint: int, twists: np.ndarray) -> np.ndarray:
+        """``∂(R + Aᵀμ)/∂ε`` (nv, k) at the fixed q when the subtree of ``joint`` (the joint and
+        every body below it) moves rigidly by ``exp(ε V_a)``, ``twists`` (6, k) the world twists
+        V_a (a change of ``joint``'s placement): for :func:`closed_form_joint` models (raises
+        RuntimeError otherwise). Each force at a body point (the loads, the bodies' weights, the
+        3-D closures') changes as the subtree's columns turn and its points move; a 6-D closure's
+        wrench as its frame turns and its relative placement changes (:meth:`_weld`)."""
+        if self._ancestors is None:
+            raise RuntimeError("moved_subtree: a joint without a closed form")
+        model, d = self.model, self.mech.data
+        pin.computeJointJacobians(model, d, q)
+        below = np.array([joint in list(model.supports[b]) for b in range(model.njoints)])
+        sub = np.zeros(model.nv)
+        for b in np.flatnonzero(below).tolist():
+            sub[model.joints[b].idx_v:model.joints[b].idx_v + model.joints[b].nv] = 1.0
+        out = np.zeros((model.nv, twists.shape[1]))
+        points = [(b, pl, s * np.asarray(w, float)) for b, pl, w in self.loads.points]
+        if self.loads.gravity:
+            g = np.asarray(model.gravity.linear)
+            points += [(b, pin.SE3(np.eye(3), np.asarray(model.inertias[b].lever)),
+                        np.r_[s * model.inertias[b].mass * g, np.zeros(3)]) for b in range(1, model.njoints)]
+        row, none = 0, np.zeros(3)
+        for cm in self.mech.constraint_models:
+            if cm.type == pin.ContactType.CONTACT_3D:
+                f = np.asarray(mu[row:row + 3]) / self.length
+                points += [(cm.joint2_id, cm.joint2_placement, np.r_[-f, none]),
+                           (cm.joint1_id, cm.joint1_placement, np.r_[f, none])]
+                row += 3
+            else:
+                out += _weld_moved(model, d, self.length, cm, np.asarray(mu[row:row + 6]), below, sub, twists)
+                row += 6
+        for b, place, w in points:  # the generalised force -Jᵀw of each
+            jac = np.reshape(pin.getJointJacobian(model, d, b, pin.WORLD), (6, model.nv))
+            p = (d.oMi[b] * place).translation
+            f, n = w[:3], pin.skew(p) @ w[:3] + w[3:]
+            out -= sub[:, None] * _cross_dot(twists, jac, f, n)
+            if below[b]:
+                dp = twists[:3] - pin.skew(p) @ twists[3:]  # the point's velocities v_a + ω_a × p
+                out -= jac[3:].T @ (-pin.skew(f) @ dp)
+        return out
 
     def _springs(self, q: np.ndarray) -> np.ndarray:
         """The springs' generalised force ``Dᵀ K d`` (nv,) at q."""
         dv = pin.difference(self.model, self.spring_rest, q)
         return pin.dDifference(self.model, self.spring_rest, q, pin.ARG1).T @ (self.k * dv)
-
-    def _weld(self, d: pin.Data, cm: Any, mu: np.ndarray) -> np.ndarray:
-        """``∂(Aᵀμ)/∂q`` (nv, nv) of a 6-D closure's rows (scaled as :meth:`constraints` scales
-        them), the joints' Jacobians computed in d. Its rows are ``Jlog6(rel) Ad(o2⁻¹) (J2 - J1)``
-        (``J_k`` the world columns of joint k's chain): ``Aᵀμ = (J2 - J1)ᵀ F``, F the world force
-        of the wrench ``λ = Jlog6(rel)ᵀ W μ`` at frame 2. F turns with frame 2 (``S_j ×* F``) and
-        with ``Jlog6`` along the relative motion ``Ad(o2⁻¹) (J2 - J1)``: its derivative in the six
-        local directions is a central difference of ``Jlog6`` alone."""
-        model = self.model
-        o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
-        rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
-        wmu = mu * np.r_[np.full(3, 1.0 / self.length), np.ones(3)]
-        j1 = np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
-        j2 = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv))
-        jd = j2 - j1
-        star = o2.toDualActionMatrix()
-        f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
-        bend = np.zeros((6, 6))  # d(Jlog6(rel exp(e))ᵀ W μ)/de
-        for k in range(6):
-            e = np.zeros(6)
-            e[k] = FD_STEP
-            plus, minus = rel * pin.exp6(pin.Motion(e)), rel * pin.exp6(pin.Motion(-e))
-            bend[:, k] = (pin.Jlog6(plus) - pin.Jlog6(minus)).T @ wmu / (2.0 * FD_STEP)
-        turned = np.r_[-pin.skew(f) @ j2[3:], -pin.skew(n) @ j2[3:] - pin.skew(f) @ j2[:3]]  # S_j ×* F
-        dforce = turned + star @ bend @ o2.inverse().toActionMatrix() @ jd
-        return self._moved(d, jd, f, n) + jd.T @ dforce
-
-    def _moved(self, d: pin.Data, jac: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
-        """``[i, j] = (S_j × S_i) · F`` where coordinate j turns column i (:attr:`_ancestors`):
-        S_i the columns of ``jac`` (6, nv), S_j the joints' world columns (``d.J``), F = [f; n]."""
-        all_ = np.reshape(d.J, (6, self.model.nv))
-        v, w = jac[:3], jac[3:]
-        sf = pin.skew(f)
-        return (v.T @ sf @ all_[3:] + w.T @ sf @ all_[:3] + w.T @ pin.skew(n) @ all_[3:]) * self._ancestors.T
-
-    def _dead(self, d: pin.Data, joint: int, p: np.ndarray, f: np.ndarray, m: np.ndarray) -> np.ndarray:
-        """``∂(Jᵀ w)/∂q`` (nv, nv) of a dead wrench ``w = [f; m]`` (world) at the point p (world)
-        of joint ``joint``'s body (J the point's LOCAL_WORLD_ALIGNED Jacobian), the joints'
-        Jacobians computed in d. With the joint's world-frame columns ``S_i = [v_i; ω_i]`` and
-        the wrench about the origin ``F = [f; p × f + m]``, ``(Jᵀw)_i = S_i · F``: joint j moves
-        S_i when it is an ancestor of i (``∂S_i/∂q_j = S_j × S_i``) and moves F through p
-        (``∂p/∂q_j = v_j + ω_j × p``)."""
-        jac = np.reshape(pin.getJointJacobian(self.model, d, joint, pin.WORLD), (6, self.model.nv))
-        v, w = jac[:3], jac[3:]
-        moved = self._moved(d, jac, f, pin.skew(p) @ f + m)  # F's moment about the origin, p × f + m
-        return moved - w.T @ pin.skew(f) @ (v - pin.skew(p) @ w)
 
     def reduced(self, q: np.ndarray, s: float, mu: np.ndarray, h: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

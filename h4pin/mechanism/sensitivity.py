@@ -19,6 +19,9 @@ import pinocchio as pin
 
 #: Central-difference step of the rigid parameters' partial derivatives (m, rad).
 STEP = 1e-7
+#: The placements' partial derivatives in closed form where the model allows
+#: (:meth:`Sensitivity._closed_columns`); False: central differences throughout.
+CLOSED = True
 
 
 class Sensitivity:
@@ -64,6 +67,46 @@ class Sensitivity:
             force += eq.load_factor * pin.computeGeneralizedGravity(model, d, q)
         return world, c, force + a.T @ eq.mu
 
+    def _closed_columns(self, rob: Any, target: str, q: np.ndarray, eq: Any) -> list[tuple[Any, ...]] | None:
+        """:meth:`_terms`' derivatives ``(dx (m, 3), dc, dF or None)`` along the six local twists
+        of ``target``'s placement, in closed form: the placement's change moves the joint's subtree
+        rigidly by the world twist ``V = Ad(oM_parent M) e``, so a marker or closure frame below
+        moves by ``v + ω × x`` and the forces change as :meth:`Problem.moved_subtree
+        <h4pin.mechanism.loaded.Problem.moved_subtree>` says; None where that has no closed form."""
+        if eq is not None and getattr(eq.problem, "_ancestors", None) is None:
+            return None
+        model = rob.mech.model
+        jp = int(model.getJointId(target))
+        d = model.createData()
+        pin.computeJointJacobians(model, d, q)
+        pin.updateFramePlacements(model, d)
+        twists = (d.oMi[int(model.parents[jp])] * model.jointPlacements[jp]).toActionMatrix()  # (6, 6)
+        below = [jp in list(model.supports[b]) for b in range(model.njoints)]
+
+        def moved(x: np.ndarray) -> np.ndarray:  # (3, 6): a point x's velocity under each twist
+            return twists[:3] - pin.skew(x) @ twists[3:]
+
+        dx = np.zeros((6, len(self.frames), 3))
+        for k, (f, name) in enumerate(zip(self.frames, self.meas.markers, strict=True)):
+            if below[int(model.frames[f].parentJoint)]:
+                dx[:, k] = moved(d.oMf[f].act(rob.markers[name])).T
+        length = 1.0 if eq is None else eq.problem.length
+        rows = [np.zeros((0, 6))]
+        for cm in rob.mech.constraint_models:
+            o1 = d.oMi[cm.joint1_id] * cm.joint1_placement
+            o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+            b1, b2 = float(below[cm.joint1_id]), float(below[cm.joint2_id])
+            if cm.type == pin.ContactType.CONTACT_3D:
+                rows.append((b2 * moved(o2.translation) - b1 * moved(o1.translation)) / length)
+            else:
+                r = pin.Jlog6(o1.inverse() * o2) @ o2.inverse().toActionMatrix() @ ((b2 - b1) * twists)
+                r[:3] /= length
+                rows.append(r)
+        rows += [np.zeros((1, 6))] * len(rob.mech.couplings)
+        dc = np.vstack(rows)
+        df = None if eq is None else eq.problem.moved_subtree(q, eq.load_factor, eq.mu, jp, twists)
+        return [(dx[a], dc[:, a], None if df is None else df[:, a]) for a in range(6)]
+
     def _point_jacobian(self, rob: Any, d: pin.Data, f: int, marker: str) -> np.ndarray:
         """(3, nv) the LOCAL_WORLD_ALIGNED Jacobian of a marker's point (Jacobians computed in d)."""
         model = rob.mech.model
@@ -106,9 +149,9 @@ class Sensitivity:
     def _partials(self, rob: Any, x: np.ndarray, q: np.ndarray, eq: Any,
                   masses: bool = True) -> dict[int, tuple[np.ndarray, ...]]:
         """Each geometry and mass parameter's partial derivatives at the fixed q: ``(dx (m, 3),
-        dc, dF)``; a geometry parameter's by central differences along the local twists, mapped to
-        ``(t, r)``, a
-        mass parameter's in closed form (:meth:`_mass_partials`; none with ``masses=False``)."""
+        dc, dF)``; a geometry parameter's along the local twists (:meth:`_closed_columns`, else
+        central differences), mapped to ``(t, r)``; a mass parameter's in closed form
+        (:meth:`_mass_partials`; none with ``masses=False``)."""
         out: dict[int, tuple[np.ndarray, ...]] = {}
         done: dict[str, list[tuple[np.ndarray, ...]]] = {}
         if masses and any(p.group == "masses" for p in self.params):
@@ -116,12 +159,14 @@ class Sensitivity:
         for k, p in enumerate(self.params):
             if p.group == "geometry":
                 if p.target not in done:  # the six local directions of this joint, once
-                    cols = []
-                    for axis in range(6):
-                        plus = self._terms(rob, self._perturbed(rob, p, STEP, axis), q, eq)
-                        minus = self._terms(rob, self._perturbed(rob, p, -STEP, axis), q, eq)
-                        cols.append(tuple(None if a is None else (a - b) / (2 * STEP)
-                                          for a, b in zip(plus, minus, strict=True)))
+                    cols = self._closed_columns(rob, p.target, q, eq) if CLOSED else None
+                    if cols is None:
+                        cols = []
+                        for axis in range(6):
+                            plus = self._terms(rob, self._perturbed(rob, p, STEP, axis), q, eq)
+                            minus = self._terms(rob, self._perturbed(rob, p, -STEP, axis), q, eq)
+                            cols.append(tuple(None if a is None else (a - b) / (2 * STEP)
+                                              for a, b in zip(plus, minus, strict=True)))
                     delta = np.array([x[i] for i, q_ in enumerate(self.params)
                                       if q_.group == "geometry" and q_.target == p.target])
                     jr = np.eye(6)  # the local twist of d(t, r): (Rᵀ dt, Jexp3(r) dr)
