@@ -3,8 +3,9 @@
 :class:`h4pin.mechanism.calibration.Model`): implicit differentiation of the loaded equilibrium.
 
 A rigid parameter (base, markers, offsets, geometry) moves the markers directly and, in a closed
-loop, through the passive joints that keep the loops closed (the placements' central differences
-at the fixed configuration, projected on the closures); an elastic one (springs, lateral hinges,
+loop, through the passive joints that keep the loops closed (projected on the closures); a joint
+placement's change moves the joint's subtree rigidly (:meth:`Sensitivity._closed_columns`; central
+differences of the placement for a joint without a closed form); an elastic one (springs, lateral hinges,
 beams) and a mass through the equilibrium: ``dq = -N Hr⁻¹ Nᵀ ∂(R + Aᵀμ)/∂p`` with the
 equilibrium's tangent stiffness (:class:`Implicit`), a mass's generalised force in closed form.
 """
@@ -182,7 +183,7 @@ class Sensitivity:
     def jacobian(self, x: np.ndarray, states: Sequence[Any]) -> np.ndarray:
         """(N, m, 3, P) the markers' derivatives in the parameters at x (module docstring): the
         rest state's and the equilibrium's implicit differentiation, each term at the fixed
-        configuration by central differences of Pinocchio's kinematics and forces."""
+        configuration (:meth:`_partials`)."""
         rob = self.robot(x)
         model = rob.mech.model
         n, m, npar = len(states), len(self.frames), len(self.params)
