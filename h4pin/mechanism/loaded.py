@@ -46,8 +46,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import weakref
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -55,7 +56,7 @@ import pinocchio as pin
 from h4pin import limits
 from h4pin.errors import ConvergenceError, ParameterError
 from h4pin.limits import ImplausibleValueError
-from h4pin.mechanism import assembly, engine
+from h4pin.mechanism import assembly, engine, mjcf_writer
 from h4pin.mechanism.arguments import checked_springs, outputs_of
 from h4pin.mechanism.batch import configurations
 from h4pin.mechanism.engine import UnrestrainedMotionError
@@ -140,19 +141,47 @@ class Loads:
         return cls(tuple(points), gravity)
 
 
-#: The joints of several coordinates whose world Jacobian columns are constant local ones carried
-#: by their placement, moved by ``q ⊕ v = q exp(v)`` (as the one-coordinate revolute and prismatic
-#: joints): an ancestor's (or the joint's own) coordinate j turns column i as ``S_j × S_i``, which
-#: gives the tangent stiffness in closed form (:meth:`Problem.tangent_exact`).
-CLOSED_FORM_JOINTS = frozenset({"JointModelFreeFlyer", "JointModelSpherical"})
-
-
 def closed_form_joint(jm: Any) -> bool:
-    """A one-coordinate revolute or prismatic joint (any axis, bounded or not), a ball or a free
-    joint (:data:`CLOSED_FORM_JOINTS`)."""
-    name = jm.shortname()
-    return name in CLOSED_FORM_JOINTS or (jm.nv == 1 and name.startswith(("JointModelR", "JointModelP"))
-                                          and not name.startswith("JointModelPlanar"))
+    """Whether a joint's world Jacobian columns are constant local ones carried by its placement,
+    moved by ``q ⊕ v = q exp(v)``: a revolute or prismatic joint (any axis, bounded or not), a
+    ball or a free joint. An ancestor's (or the joint's own) coordinate j then turns column i as
+    ``S_j × S_i``, which gives the tangent stiffness in closed form (:meth:`Problem.tangent_exact`)."""
+    return (mjcf_writer.is_revolute(jm) or mjcf_writer.is_prismatic(jm) or mjcf_writer.is_free(jm)
+            or jm.shortname() == "JointModelSpherical")
+
+
+_ANCESTRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def ancestry(mech: Any) -> tuple[np.ndarray | None, tuple[slice, ...]]:
+    """``(A, multi)`` of a mechanism, computed once (read-only): ``A[j, i]`` = 1 where coordinate j
+    turns coordinate i's Jacobian column (j's joint is an ancestor of i's, or the same ball or free
+    joint), None when a joint is not a :func:`closed_form_joint`; ``multi`` the coordinates of each
+    joint of several coordinates."""
+    out = _ANCESTRY.get(mech)
+    if out is None:
+        model, table = mech.model, None
+        multi = tuple(slice(jm.idx_v, jm.idx_v + jm.nv) for jm in model.joints[1:] if jm.nv > 1)
+        if all(closed_form_joint(model.joints[j]) for j in range(1, model.njoints)):
+            table = np.zeros((model.nv, model.nv))
+            for j in range(1, model.njoints):
+                jm = model.joints[j]
+                for a in list(model.supports[j])[1:]:
+                    am = model.joints[a]
+                    table[am.idx_v:am.idx_v + am.nv, jm.idx_v:jm.idx_v + jm.nv] = 1.0
+            table.flags.writeable = False
+        out = _ANCESTRY[mech] = (table, multi)
+    return out
+
+
+def subtree(model: pin.Model, joint: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(below (njoints,) bool, coordinates (nv,) 0/1)``: the joints of ``joint``'s subtree (itself
+    and every joint under it) and their coordinates."""
+    below = np.array([joint in list(model.supports[b]) for b in range(model.njoints)])
+    coordinates = np.zeros(model.nv)
+    for b in np.flatnonzero(below).tolist():
+        coordinates[model.joints[b].idx_v:model.joints[b].idx_v + model.joints[b].nv] = 1.0
+    return below, coordinates
 
 
 def _cross_dot(twists: np.ndarray, jac: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -161,6 +190,12 @@ def _cross_dot(twists: np.ndarray, jac: np.ndarray, f: np.ndarray, n: np.ndarray
     sf = pin.skew(f)
     v, w = jac[:3], jac[3:]
     return v.T @ sf @ twists[3:] + w.T @ sf @ twists[:3] + w.T @ pin.skew(n) @ twists[3:]
+
+
+def _turned(motions: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``M_a ×* F`` (6, k): how the world force ``F = [f; n]`` changes as its frame moves by each
+    twist ``M_a`` (6, k)."""
+    return np.r_[-pin.skew(f) @ motions[3:], -pin.skew(n) @ motions[3:] - pin.skew(f) @ motions[:3]]
 
 
 def _jlog6_bend(rel: pin.SE3, wmu: np.ndarray) -> np.ndarray:
@@ -174,68 +209,67 @@ def _jlog6_bend(rel: pin.SE3, wmu: np.ndarray) -> np.ndarray:
     return bend
 
 
-def _moved(model: pin.Model, d: pin.Data, ancestors: np.ndarray, jac: np.ndarray, f: np.ndarray, n: np.ndarray
-           ) -> np.ndarray:
-    """``[i, j] = (S_j × S_i) · F`` where coordinate j turns column i (``ancestors``):
-    S_i the columns of ``jac`` (6, nv), S_j the joints' world columns (``d.J``), F = [f; n]."""
-    all_ = np.reshape(d.J, (6, model.nv))
-    v, w = jac[:3], jac[3:]
-    sf = pin.skew(f)
-    return (v.T @ sf @ all_[3:] + w.T @ sf @ all_[:3] + w.T @ pin.skew(n) @ all_[3:]) * ancestors.T
-
-
 def _dead(model: pin.Model, d: pin.Data, ancestors: np.ndarray, joint: int, p: np.ndarray, f: np.ndarray,
           m: np.ndarray) -> np.ndarray:
     """``∂(Jᵀ w)/∂q`` (nv, nv) of a dead wrench ``w = [f; m]`` (world) at the point p (world)
     of joint ``joint``'s body (J the point's LOCAL_WORLD_ALIGNED Jacobian), the joints'
     Jacobians computed in d. With the joint's world-frame columns ``S_i = [v_i; ω_i]`` and
     the wrench about the origin ``F = [f; p × f + m]``, ``(Jᵀw)_i = S_i · F``: joint j moves
-    S_i when it is an ancestor of i (``∂S_i/∂q_j = S_j × S_i``) and moves F through p
-    (``∂p/∂q_j = v_j + ω_j × p``)."""
+    S_i when it is an ancestor of i (``∂S_i/∂q_j = S_j × S_i``, every column ``d.J``) and moves F
+    through p (``∂p/∂q_j = v_j + ω_j × p``)."""
     jac = np.reshape(pin.getJointJacobian(model, d, joint, pin.WORLD), (6, model.nv))
     v, w = jac[:3], jac[3:]
-    moved = _moved(model, d, ancestors, jac, f, pin.skew(p) @ f + m)  # F's moment about the origin, p × f + m
+    moved = _cross_dot(np.reshape(d.J, (6, model.nv)), jac, f, pin.skew(p) @ f + m) * ancestors.T
     return moved - w.T @ pin.skew(f) @ (v - pin.skew(p) @ w)
 
 
-def _weld(model: pin.Model, d: pin.Data, ancestors: np.ndarray, length: float, cm: Any, mu: np.ndarray) -> np.ndarray:
-    """``∂(Aᵀμ)/∂q`` (nv, nv) of a 6-D closure's rows (scaled as :meth:`Problem.constraints` scales
-    them), the joints' Jacobians computed in d. Its rows are ``Jlog6(rel) Ad(o2⁻¹) (J2 - J1)``
-    (``J_k`` the world columns of joint k's chain): ``Aᵀμ = (J2 - J1)ᵀ F``, F the world force
-    of the wrench ``λ = Jlog6(rel)ᵀ W μ`` at frame 2. F turns with frame 2 (``S_j ×* F``) and
-    with ``Jlog6`` along the relative motion ``Ad(o2⁻¹) (J2 - J1)``: its derivative in the six
-    local directions is a central difference of ``Jlog6`` alone."""
-    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
-    rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
-    wmu = mu * np.r_[np.full(3, 1.0 / length), np.ones(3)]
-    j1 = np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
-    j2 = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv))
-    jd = j2 - j1
-    star = o2.toDualActionMatrix()
-    f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
-    turned = np.r_[-pin.skew(f) @ j2[3:], -pin.skew(n) @ j2[3:] - pin.skew(f) @ j2[:3]]  # S_j ×* F
-    dforce = turned + star @ _jlog6_bend(rel, wmu) @ o2.inverse().toActionMatrix() @ jd
-    return _moved(model, d, ancestors, jd, f, n) + jd.T @ dforce
+class _Weld(NamedTuple):
+    """A 6-D closure's rows ``Jlog6(rel) Ad(o2⁻¹) (J2 - J1)`` (``J_k`` the world columns of joint
+    k's chain, the rows scaled as :meth:`Problem.constraints` scales them) as a force:
+    ``Aᵀμ = (J2 - J1)ᵀ F``, F = [f; n] the world force of the wrench ``λ = Jlog6(rel)ᵀ W μ`` at
+    frame 2."""
 
+    joints: tuple[int, int]
+    o2: pin.SE3
+    rel: pin.SE3
+    wmu: np.ndarray
+    j2: np.ndarray
+    jd: np.ndarray
+    f: np.ndarray
+    n: np.ndarray
 
-def _weld_moved(model: pin.Model, d: pin.Data, length: float, cm: Any, mu: np.ndarray, below: np.ndarray,
-                sub: np.ndarray, twists: np.ndarray) -> np.ndarray:
-    """:meth:`Problem.moved_subtree`'s term (nv, k) of a 6-D closure (:func:`_weld`'s wrench)."""
-    o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
-    rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
-    wmu = mu * np.r_[np.full(3, 1.0 / length), np.ones(3)]
-    jd = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv)) - \
-        np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
-    star = o2.toDualActionMatrix()
-    f, n = np.split(star @ (pin.Jlog6(rel).T @ wmu), 2)
-    out = sub[:, None] * _cross_dot(twists, jd, f, n)
-    dforce = np.zeros((6, twists.shape[1]))
-    if below[cm.joint2_id]:
-        dforce += np.r_[-pin.skew(f) @ twists[3:], -pin.skew(n) @ twists[3:] - pin.skew(f) @ twists[:3]]
-    side = float(below[cm.joint2_id]) - float(below[cm.joint1_id])
-    if side:
-        dforce += star @ _jlog6_bend(rel, wmu) @ o2.inverse().toActionMatrix() @ (side * twists)
-    return out + jd.T @ dforce
+    @classmethod
+    def of(cls, model: pin.Model, d: pin.Data, length: float, cm: Any, mu: np.ndarray) -> _Weld:
+        o2 = d.oMi[cm.joint2_id] * cm.joint2_placement
+        rel = (d.oMi[cm.joint1_id] * cm.joint1_placement).inverse() * o2
+        wmu = mu * np.r_[np.full(3, 1.0 / length), np.ones(3)]
+        j2 = np.reshape(pin.getJointJacobian(model, d, cm.joint2_id, pin.WORLD), (6, model.nv))
+        jd = j2 - np.reshape(pin.getJointJacobian(model, d, cm.joint1_id, pin.WORLD), (6, model.nv))
+        f, n = np.split(o2.toDualActionMatrix() @ (pin.Jlog6(rel).T @ wmu), 2)
+        return cls((int(cm.joint1_id), int(cm.joint2_id)), o2, rel, wmu, j2, jd, f, n)
+
+    def bent(self, motions: np.ndarray) -> np.ndarray:
+        """F's change (6, k) as the relative placement moves by ``Ad(o2⁻¹) M_a`` (world twists M_a)."""
+        return self.o2.toDualActionMatrix() @ _jlog6_bend(self.rel, self.wmu) @ self.o2.inverse().toActionMatrix() \
+            @ motions
+
+    def tangent(self, d: pin.Data, ancestors: np.ndarray) -> np.ndarray:
+        """``∂(Aᵀμ)/∂q`` (nv, nv): the columns turned, F turned with frame 2 (``S_j ×* F``) and
+        with ``Jlog6`` along the relative motion (its change in six local directions by differences)."""
+        moved = _cross_dot(np.reshape(d.J, self.jd.shape), self.jd, self.f, self.n) * ancestors.T
+        return moved + self.jd.T @ (_turned(self.j2, self.f, self.n) + self.bent(self.jd))
+
+    def moved(self, below: np.ndarray, sub: np.ndarray, twists: np.ndarray) -> np.ndarray:
+        """:meth:`Problem.moved_subtree`'s term (nv, k): the subtree's columns turned; F turned when
+        frame 2 is below, and bent when one frame is below and the other not."""
+        out = sub[:, None] * _cross_dot(twists, self.jd, self.f, self.n)
+        dforce = np.zeros((6, twists.shape[1]))
+        if below[self.joints[1]]:
+            dforce += _turned(twists, self.f, self.n)
+        side = float(below[self.joints[1]]) - float(below[self.joints[0]])
+        if side:
+            dforce += self.bent(side * twists)
+        return out + self.jd.T @ dforce
 
 
 class Problem:
@@ -264,22 +298,13 @@ class Problem:
         self.length = engine.length_scale(model, d)
         self.col = np.where(np.linalg.norm(np.reshape(d.J, (6, model.nv))[3:], axis=0) == 0.0, self.length, 1.0)
         self._last: tuple[Any, Any] | None = None  # the last reduced tangent (its state, its value)
-        #: ``[j, i]``: coordinate j turns coordinate i's Jacobian column (j's joint is an ancestor
-        #: of i's, or the same ball or free joint); None: a joint whose column is not a constant
-        #: local one (:data:`CLOSED_FORM_JOINTS`), the tangent is taken by differences.
-        self._ancestors: np.ndarray | None = None
+        #: ``[j, i]``: coordinate j turns coordinate i's Jacobian column (:func:`ancestry`); None:
+        #: a joint without a closed form, the tangent is taken by differences.
+        self._ancestors, multi = ancestry(mech)
         #: The coordinates of ball and free joints with a spring (their spring's tangent by differences).
         self._curved = np.zeros(model.nv, dtype=bool)
-        if all(closed_form_joint(model.joints[j]) for j in range(1, model.njoints)):
-            self._ancestors = np.zeros((model.nv, model.nv))
-            for j in range(1, model.njoints):
-                jm = model.joints[j]
-                cols = slice(jm.idx_v, jm.idx_v + jm.nv)
-                for a in list(model.supports[j])[1:]:
-                    am = model.joints[a]
-                    self._ancestors[am.idx_v:am.idx_v + am.nv, cols] = 1.0
-                if jm.nv > 1:
-                    self._curved[cols] = np.any(self.k[cols] != 0.0)
+        for cols in multi:
+            self._curved[cols] = np.any(self.k[cols] != 0.0)
 
     # -------------------------------------------------------------- evaluations
     def forces(self, q: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -312,7 +337,8 @@ class Problem:
 
     def tangent(self, q: np.ndarray, s: float, mu: np.ndarray) -> np.ndarray:
         """``H`` (nv, nv) at q, μ fixed (columns of locked coordinates zero): in closed form
-        (:meth:`tangent_exact`) where every joint has one coordinate, else :meth:`tangent_fd`."""
+        (:meth:`tangent_exact`) where every joint is a :func:`closed_form_joint`, else
+        :meth:`tangent_fd`."""
         return self.tangent_exact(q, s, mu) if self._ancestors is not None else self.tangent_fd(q, s, mu)
 
     def tangent_fd(self, q: np.ndarray, s: float, mu: np.ndarray,
@@ -330,32 +356,22 @@ class Problem:
 
     def tangent_exact(self, q: np.ndarray, s: float, mu: np.ndarray) -> np.ndarray:
         """``H`` at q for a model of :func:`closed_form_joint` joints: the springs' ``K`` (a ball
-        or free joint's by differences of the springs alone); the dead loads' and the 3-D
-        closures' forces (a force at a body point, :meth:`_dead`); gravity (Pinocchio's
-        derivatives); the couplings' curvature; the 6-D closures' wrenches (:meth:`_weld`)."""
+        or free joint's by differences of the springs alone); the forces at body points (the dead
+        loads', the 3-D closures': :func:`_dead`); gravity (Pinocchio's derivatives); the
+        couplings' curvature; the 6-D closures' wrenches (:class:`_Weld`)."""
         model, d = self.model, self.mech.data
         pin.computeJointJacobians(model, d, q)
         h = np.diag(np.where(self._curved, 0.0, self.k))
         if self._curved.any():  # a ball or free joint's spring: Dᵀ K d bends with q
             h[:, self._curved] = self.tangent_fd(q, s, mu, part=self._springs, columns=self._curved)[:, self._curved]
-        load = np.zeros((model.nv, model.nv))
-        for joint, place, w in self.loads.points:
-            load -= _dead(model, d, self._ancestors, joint, (d.oMi[joint] * place).translation, w[:3], w[3:])
         if self.loads.gravity:
-            load += pin.computeGeneralizedGravityDerivatives(model, d, q)
-        h += s * load
-        row, welds = 0, []
-        for cm in self.mech.constraint_models:
-            if cm.type == pin.ContactType.CONTACT_3D:
-                f = np.asarray(mu[row:row + 3]) / self.length
-                none = np.zeros(3)
-                for sign, joint, place in ((1.0, cm.joint2_id, cm.joint2_placement),
-                                           (-1.0, cm.joint1_id, cm.joint1_placement)):
-                    h += sign * _dead(model, d, self._ancestors, joint, (d.oMi[joint] * place).translation, f, none)
-                row += 3
-            else:
-                welds.append((cm, row))
-                row += 6
+            h += s * pin.computeGeneralizedGravityDerivatives(model, d, q)
+        points, welds = self._closure_loads(mu)
+        for joint, place, w in [(b, pl, s * w) for b, pl, w in self.loads.points] + points:  # -Jᵀw each
+            h -= _dead(model, d, self._ancestors, joint, (d.oMi[joint] * place).translation, w[:3], w[3:])
+        for weld in welds:
+            h += _Weld.of(model, d, self.length, *weld).tangent(d, self._ancestors)
+        row = len(mu) - len(self.mech.couplings)
         for c in self.mech.couplings:
             if c.joint2 is not None:  # the row's -slope(q2): its derivative -mu curvature
                 j2 = model.joints[model.getJointId(c.joint2)]
@@ -363,33 +379,14 @@ class Problem:
                 curve = sum(k * (k - 1) * a * u2 ** (k - 2) for k, a in enumerate(c.poly) if k > 1)
                 h[j2.idx_v, j2.idx_v] -= mu[row] * curve
             row += 1
-        for cm, row in welds:
-            h += _weld(model, d, self._ancestors, self.length, cm, np.asarray(mu[row:row + 6]))
         h[:, ~self.free] = 0.0
         return h
 
-    def moved_subtree(self, q: np.ndarray, s: float, mu: np.ndarray, joint: int, twists: np.ndarray) -> np.ndarray:
-        """``∂(R + Aᵀμ)/∂ε`` (nv, k) at the fixed q when the subtree of ``joint`` (the joint and
-        every body below it) moves rigidly by ``exp(ε V_a)``, ``twists`` (6, k) the world twists
-        V_a (a change of ``joint``'s placement): for :func:`closed_form_joint` models (raises
-        RuntimeError otherwise). Each force at a body point (the loads, the bodies' weights, the
-        3-D closures') changes as the subtree's columns turn and its points move; a 6-D closure's
-        wrench as its frame turns and its relative placement changes (:meth:`_weld`)."""
-        if self._ancestors is None:
-            raise RuntimeError("moved_subtree: a joint without a closed form")
-        model, d = self.model, self.mech.data
-        pin.computeJointJacobians(model, d, q)
-        below = np.array([joint in list(model.supports[b]) for b in range(model.njoints)])
-        sub = np.zeros(model.nv)
-        for b in np.flatnonzero(below).tolist():
-            sub[model.joints[b].idx_v:model.joints[b].idx_v + model.joints[b].nv] = 1.0
-        out = np.zeros((model.nv, twists.shape[1]))
-        points = [(b, pl, s * np.asarray(w, float)) for b, pl, w in self.loads.points]
-        if self.loads.gravity:
-            g = np.asarray(model.gravity.linear)
-            points += [(b, pin.SE3(np.eye(3), np.asarray(model.inertias[b].lever)),
-                        np.r_[s * model.inertias[b].mass * g, np.zeros(3)]) for b in range(1, model.njoints)]
-        row, none = 0, np.zeros(3)
+    def _closure_loads(self, mu: np.ndarray) -> tuple[list[tuple[int, pin.SE3, np.ndarray]], list[tuple[Any, ...]]]:
+        """The closures' forces μ as loads: each 3-D closure's ``Aᵀμ`` as two dead wrenches
+        ``(joint, placement, w)`` whose generalised forces are ``-Jᵀw`` (as the loads'); each 6-D
+        closure as ``(closure, its μ (6,))``."""
+        points, welds, row, none = [], [], 0, np.zeros(3)
         for cm in self.mech.constraint_models:
             if cm.type == pin.ContactType.CONTACT_3D:
                 f = np.asarray(mu[row:row + 3]) / self.length
@@ -397,9 +394,32 @@ class Problem:
                            (cm.joint1_id, cm.joint1_placement, np.r_[f, none])]
                 row += 3
             else:
-                out += _weld_moved(model, d, self.length, cm, np.asarray(mu[row:row + 6]), below, sub, twists)
+                welds.append((cm, np.asarray(mu[row:row + 6])))
                 row += 6
-        for b, place, w in points:  # the generalised force -Jᵀw of each
+        return points, welds
+
+    def moved_subtree(self, q: np.ndarray, s: float, mu: np.ndarray, joint: int, twists: np.ndarray) -> np.ndarray:
+        """``∂(R + Aᵀμ)/∂ε`` (nv, k) at the fixed q when the subtree of ``joint`` (the joint and
+        every body below it) moves rigidly by ``exp(ε V_a)``, ``twists`` (6, k) the world twists
+        V_a (a change of ``joint``'s placement): for :func:`closed_form_joint` models (raises
+        RuntimeError otherwise). Each force at a body point (the loads, the bodies' weights, the
+        3-D closures') changes as the subtree's columns turn and its points move; a 6-D closure's
+        wrench as its frame turns and its relative placement changes (:class:`_Weld`)."""
+        if self._ancestors is None:
+            raise RuntimeError("moved_subtree: a joint without a closed form")
+        model, d = self.model, self.mech.data
+        pin.computeJointJacobians(model, d, q)
+        below, sub = subtree(model, joint)
+        out = np.zeros((model.nv, twists.shape[1]))
+        points = [(b, pl, s * np.asarray(w, float)) for b, pl, w in self.loads.points]
+        if self.loads.gravity:
+            g = np.asarray(model.gravity.linear)
+            points += [(b, pin.SE3(np.eye(3), np.asarray(model.inertias[b].lever)),
+                        np.r_[s * model.inertias[b].mass * g, np.zeros(3)]) for b in range(1, model.njoints)]
+        extra, welds = self._closure_loads(mu)
+        for weld in welds:
+            out += _Weld.of(model, d, self.length, *weld).moved(below, sub, twists)
+        for b, place, w in points + extra:  # the generalised force -Jᵀw of each
             jac = np.reshape(pin.getJointJacobian(model, d, b, pin.WORLD), (6, model.nv))
             p = (d.oMi[b] * place).translation
             f, n = w[:3], pin.skew(p) @ w[:3] + w[3:]
@@ -909,5 +929,5 @@ class UnderLoad:
         return compensate(self, targets, springs, loads, gravity, payload, locked, start, tol, iterations)
 
 
-__all__ = ["CLOSED_FORM_JOINTS", "Compensation", "CriticalLoad", "Equilibrium", "LimitLoadError", "Loads", "Problem",
-           "UnderLoad", "closed_form_joint", "compensate", "critical", "problem", "solve", "warm"]
+__all__ = ["Compensation", "CriticalLoad", "Equilibrium", "LimitLoadError", "Loads", "Problem", "UnderLoad", "ancestry",
+           "closed_form_joint", "compensate", "critical", "problem", "solve", "subtree", "warm"]

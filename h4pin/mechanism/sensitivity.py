@@ -55,7 +55,7 @@ class Sensitivity:
         d = model.createData()
         pin.computeJointJacobians(model, d, q)
         pin.updateFramePlacements(model, d)
-        world = np.array([d.oMf[f].act(rob.markers[n]) for f, n in zip(self.frames, self.meas.markers, strict=True)])
+        world = self._markers(rob, d)
         c, a = assembly.closure_rows(rob.mech, model, d, q, 1.0 if eq is None else eq.problem.length)
         if eq is None:
             return world, c, None
@@ -68,21 +68,26 @@ class Sensitivity:
             force += eq.load_factor * pin.computeGeneralizedGravity(model, d, q)
         return world, c, force + a.T @ eq.mu
 
-    def _closed_columns(self, rob: Any, target: str, q: np.ndarray, eq: Any) -> list[tuple[Any, ...]] | None:
+    def _markers(self, rob: Any, d: pin.Data) -> np.ndarray:
+        """(m, 3) the markers in the world (frame placements computed in d)."""
+        return np.array([d.oMf[f].act(rob.markers[n]) for f, n in zip(self.frames, self.meas.markers, strict=True)])
+
+    def _closed_columns(self, rob: Any, target: str, q: np.ndarray, eq: Any,
+                        d: pin.Data) -> list[tuple[Any, ...]] | None:
         """:meth:`_terms`' derivatives ``(dx (m, 3), dc, dF or None)`` along the six local twists
         of ``target``'s placement, in closed form: the placement's change moves the joint's subtree
         rigidly by the world twist ``V = Ad(oM_parent M) e``, so a marker or closure frame below
         moves by ``v + ω × x`` and the forces change as :meth:`Problem.moved_subtree
-        <h4pin.mechanism.loaded.Problem.moved_subtree>` says; None where that has no closed form."""
+        <h4pin.mechanism.loaded.Problem.moved_subtree>` says; None where that has no closed form
+        (d: Pinocchio's joint Jacobians and frame placements at q)."""
+        from h4pin.mechanism.loaded import subtree
+
         if eq is not None and getattr(eq.problem, "_ancestors", None) is None:
             return None
         model = rob.mech.model
         jp = int(model.getJointId(target))
-        d = model.createData()
-        pin.computeJointJacobians(model, d, q)
-        pin.updateFramePlacements(model, d)
         twists = (d.oMi[int(model.parents[jp])] * model.jointPlacements[jp]).toActionMatrix()  # (6, 6)
-        below = [jp in list(model.supports[b]) for b in range(model.njoints)]
+        below, _ = subtree(model, jp)
 
         def moved(x: np.ndarray) -> np.ndarray:  # (3, 6): a point x's velocity under each twist
             return twists[:3] - pin.skew(x) @ twists[3:]
@@ -157,10 +162,15 @@ class Sensitivity:
         done: dict[str, list[tuple[np.ndarray, ...]]] = {}
         if masses and any(p.group == "masses" for p in self.params):
             out.update(self._mass_partials(rob, q, eq))
+        d = None
+        if CLOSED and any(p.group == "geometry" for p in self.params):
+            d = rob.mech.model.createData()
+            pin.computeJointJacobians(rob.mech.model, d, q)
+            pin.updateFramePlacements(rob.mech.model, d)
         for k, p in enumerate(self.params):
             if p.group == "geometry":
                 if p.target not in done:  # the six local directions of this joint, once
-                    cols = self._closed_columns(rob, p.target, q, eq) if CLOSED else None
+                    cols = self._closed_columns(rob, p.target, q, eq, d) if d is not None else None
                     if cols is None:
                         cols = []
                         for axis in range(6):
@@ -204,8 +214,7 @@ class Sensitivity:
             pin.updateFramePlacements(model, d)
             jx = np.stack([self._point_jacobian(rob, d, f, mk) for f, mk in zip(self.frames, self.meas.markers,
                                                                                   strict=True)])  # (m, 3, nv)
-            world = self._terms(rob, model, q, None)[0]
-            pre = (self.base0.act(w) for w in world)  # the markers before the base's correction
+            pre = (self.base0.act(w) for w in self._markers(rob, d))  # the markers before the base's correction
             base_cols = np.array([tb.rotation @ np.c_[np.eye(3), -pin.skew(z)] @ jr_base for z in pre])  # (m, 3, 6)
             partials = self._partials(rob, x, q, eq)
             at_rest = partials if eq is None or not len(rob.mech.constraint_models) else \
