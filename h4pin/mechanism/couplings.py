@@ -30,18 +30,10 @@ class JointCoupling:
         return jm.idx_q
 
     def residual_row(self, model: pin.Model, q: np.ndarray) -> tuple[float, np.ndarray]:
-        """The coupling's residual at q and its row (nv,) of d(residual)/dq."""
-        i1 = self._index(model, self.joint1)
-        row = np.zeros(model.nv)
-        row[model.joints[model.getJointId(self.joint1)].idx_v] = 1.0
-        if self.joint2 is None:
-            return float(q[i1] - self.origin1 - self.poly[0]), row
-        i2 = self._index(model, self.joint2)
-        u2 = q[i2] - self.origin2
-        value = sum(c * u2**k for k, c in enumerate(self.poly))
-        slope = sum(k * c * u2 ** (k - 1) for k, c in enumerate(self.poly) if k)
-        row[model.joints[model.getJointId(self.joint2)].idx_v] = -slope
-        return float(q[i1] - self.origin1 - value), row
+        """The coupling's residual at q and its row (nv,) of d(residual)/dq (:meth:`residual_rows`
+        of one configuration)."""
+        r, rows = self.residual_rows(model, np.asarray(q, float)[None])
+        return float(r[0]), rows[0]
 
     def residual_rows(self, model: pin.Model, Q: np.ndarray, out: np.ndarray | None = None) -> tuple[np.ndarray,
                                                                                                     np.ndarray]:
