@@ -58,7 +58,7 @@ import numpy as np
 import pinocchio as pin
 
 from h4pin.errors import H4Error, ParameterError
-from h4pin.mechanism import fitting, loaded
+from h4pin.mechanism import assembly, fitting, loaded
 from h4pin.mechanism.engine import Insertion, VirtualJoint
 from h4pin.mechanism.measurements import Measurements
 from h4pin.mechanism.sensitivity import Sensitivity
@@ -140,7 +140,7 @@ def parameters(mech: Any, groups: Any, springs: Mapping[str, float], markers: Se
                 jm = model.joints[_joint_of(model, j, group)]
                 if j not in commanded or jm.nq != 1:
                     raise ParameterError(f"parameters: offsets: {j!r} is not a commanded one-coordinate joint")
-                prismatic = "Prismatic" in jm.shortname() or jm.shortname().startswith("JointModelP")
+                prismatic = assembly.motor_range(model, j) == "motor travel"
                 out.append(Parameter(f"offsets/{j}", group, j, 0, 0.0, SIGMA["offsets"][int(prismatic)]))
         elif group == "geometry":
             for j in _targets(targets, movable, group):
