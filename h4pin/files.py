@@ -109,7 +109,7 @@ def check_output(path: str | Path, what: str, *, folder: bool = False, suffixes:
     except ParameterError:
         raise
     except OSError as exc:  # a name too long, a name the file system cannot encode, ...
-        raise ParameterError(f"{what} {path!s:.200}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+        raise ParameterError(f"{what} {path!s:.200}: {_reason(exc)}") from None
     except (UnicodeError, ValueError) as exc:
         raise ParameterError(f"{what} {path!r:.200}: not a usable file name ({exc})") from None
     except TypeError:  # not a path: None, a number, bytes (give os.fsdecode(path))
@@ -169,6 +169,11 @@ def input_path(path: Any, what: str) -> Path:
     return Path(text)
 
 
+def _reason(exc: OSError) -> str:
+    """The system's words for an OS error (its errno's message, else the error's own text)."""
+    return os.strerror(exc.errno) if exc.errno else str(exc)
+
+
 def _kind(mode: int) -> str:
     """What a file that is not a regular one is, for a message."""
     if stat.S_ISFIFO(mode):
@@ -193,7 +198,7 @@ def check_input(path: Any, what: str, *, max_bytes: int = INPUT_BYTES, folder: b
     except FileNotFoundError:
         raise InputFileError(f"{what} {path}: no such file") from None
     except OSError as exc:
-        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+        raise InputFileError(f"{what} {path}: {_reason(exc)}") from None
     except ValueError as exc:  # a NUL byte in the name
         raise InputFileError(f"{what} {path!r:.200}: not a usable file name ({exc})") from None
     if folder and stat.S_ISDIR(st.st_mode):
@@ -220,7 +225,7 @@ def read_input(path: Any, what: str, max_bytes: int = INPUT_BYTES) -> bytes:
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
-        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+        raise InputFileError(f"{what} {path}: {_reason(exc)}") from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
@@ -233,7 +238,7 @@ def read_input(path: Any, what: str, max_bytes: int = INPUT_BYTES) -> bytes:
             chunks.append(chunk)
             size += len(chunk)
     except OSError as exc:
-        raise InputFileError(f"{what} {path}: {os.strerror(exc.errno) if exc.errno else exc}") from None
+        raise InputFileError(f"{what} {path}: {_reason(exc)}") from None
     finally:
         os.close(fd)
     if size > max_bytes:
